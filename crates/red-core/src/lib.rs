@@ -1,0 +1,49 @@
+//! Shared vocabulary of the `red` workspace: the [`Env`] trait and its
+//! [`Space`]s, the [`TimeLimit`] and [`RewardWrapper`] wrappers, the
+//! [`RewardModel`] trait, seeding, and expert demonstrations.
+//!
+//! ```
+//! use red_core::{Env, TimeLimit};
+//! # use red_core::{Info, Result, Space, Step, BoxSpace};
+//! # struct Walk { pos: f64, obs: Space, act: Space }
+//! # impl Env for Walk {
+//! #     fn observation_space(&self) -> &Space { &self.obs }
+//! #     fn action_space(&self) -> &Space { &self.act }
+//! #     fn reset(&mut self, _seed: Option<u64>) -> Result<(Vec<f64>, Info)> {
+//! #         self.pos = 0.0; Ok((vec![0.0], Info::new()))
+//! #     }
+//! #     fn step(&mut self, a: &[f64]) -> Result<Step> {
+//! #         self.pos += a[0];
+//! #         Ok(Step { observation: vec![self.pos], reward: a[0], terminated: false,
+//! #                   truncated: false, info: Info::new() })
+//! #     }
+//! # }
+//! # let walk = Walk { pos: 0.0, obs: Space::Box(BoxSpace::uniform(1, f64::NEG_INFINITY, f64::INFINITY)),
+//! #                   act: Space::Box(BoxSpace::uniform(1, -1.0, 1.0)) };
+//! let mut env = TimeLimit::new(walk, 3)?;
+//! env.reset(Some(0))?;
+//! let mut steps = 0;
+//! loop {
+//!     let step = env.step(&[0.5])?;
+//!     steps += 1;
+//!     if step.terminated || step.truncated { break; }
+//! }
+//! assert_eq!(steps, 3);
+//! # Ok::<(), red_core::Error>(())
+//! ```
+
+pub mod demo;
+pub mod env;
+pub mod error;
+pub mod reward;
+pub mod seeding;
+pub mod space;
+pub mod wrappers;
+
+pub use demo::{Demos, EpisodeEnd, Trajectory};
+pub use env::{Env, Info, Step, TRUE_REWARD};
+pub use error::{Error, Result};
+pub use reward::RewardModel;
+pub use seeding::{Seeder, Stream};
+pub use space::{BoxSpace, Space};
+pub use wrappers::{RewardWrapper, TimeLimit};

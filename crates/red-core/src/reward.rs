@@ -1,0 +1,40 @@
+//! Reward models: a learned reward over state-action pairs.
+
+use ndarray::{Array1, ArrayView2};
+
+use crate::Result;
+
+/// A reward over state-action pairs, used in place of the environment's own.
+///
+/// Some models are fitted once before learning (RED, AE); others adapt to
+/// the policy's data during training (GAIL, GMMIL). A learner calls
+/// [`RewardModel::update`] with each fresh batch of its own pairs and need
+/// not know which kind it holds: a fixed model ignores the call.
+pub trait RewardModel {
+    /// Rewards of a batch: `states` is `(n, obs_dim)`, `actions` is
+    /// `(n, act_dim)`; returns `n` rewards.
+    ///
+    /// # Errors
+    /// A shape mismatch with the dimensions the model was fitted on, or
+    /// non-finite inputs.
+    fn rewards(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<Array1<f64>>;
+
+    /// Lets an adaptive model learn from a batch of the policy's own pairs
+    /// (`(n, obs_dim)` and `(n, act_dim)`). Models fitted once do nothing.
+    ///
+    /// # Errors
+    /// Shape mismatches, non-finite inputs, or a training failure.
+    fn update(&mut self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Result<()> {
+        let _ = (states, actions);
+        Ok(())
+    }
+
+    /// Whether [`RewardModel::update`] changes the model.
+    fn is_adaptive(&self) -> bool {
+        false
+    }
+}

@@ -1,0 +1,1 @@
+//! Dense neural networks (placeholder until the red-nets work lands).
