@@ -1,5 +1,29 @@
-//! `red-cli`: the command-line tool of the red workspace.
+//! `red-cli`: the command-line tool of the red workspace. It composes the
+//! library crates and holds no algorithm of its own: each subcommand lives
+//! in a module of its own (`drive.rs`, `support.rs`, ...).
 
-fn main() {
-    println!("red-cli: no subcommands yet");
+use clap::{Parser, Subcommand};
+
+/// Imitation learning from a handful of demonstrations with Random Expert
+/// Distillation (RED).
+#[derive(Debug, Parser)]
+#[command(name = "red-cli", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Inspect a demonstration file: environment, dimensions, trajectories.
+    Demo(demo::DemoArgs),
+}
+
+mod demo;
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Demo(args) => demo::run(args),
+    }
 }
