@@ -1,5 +1,8 @@
-//! Learners of the red workspace.
-//!
-//! Status: this crate is a placeholder of the workspace. DQN, TRPO, SVG(1)-ER,
-//! behaviour cloning, GAIL and GMMIL come with later issues; until then it
-//! provides nothing.
+//! Learners of the red workspace: DQN, TRPO, SVG(1)-ER, behaviour cloning,
+//! and the imitation baselines whose reward adapts during training, GAIL and
+//! GMMIL. Learners are generic over [`red_core::Env`] and take any
+//! [`red_core::RewardModel`].
+
+pub mod error;
+
+pub use error::{Error, Result};
