@@ -1,0 +1,625 @@
+//! The multilayer perceptron: inference, training tape, backward, jvp, save/load.
+
+use std::path::Path;
+
+use ndarray::linalg::general_mat_mul;
+use ndarray::{Array1, Array2, ArrayView2, Axis};
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::activation::Activation;
+use crate::config::MlpConfig;
+use crate::error::{Error, Result};
+use crate::grads::Gradients;
+use crate::init::init_weights;
+
+/// Name written into saved networks.
+pub const MLP_FORMAT: &str = "red-nets/mlp";
+/// Version of the saved-network format written by this crate.
+pub const MLP_FORMAT_VERSION: u32 = 1;
+
+/// One dense layer: `out = act(x W + b)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Layer {
+    /// Weights, shape `(in, out)`.
+    pub w: Array2<f32>,
+    /// Biases, shape `(out,)`.
+    pub b: Array1<f32>,
+}
+
+/// A dense feed-forward network with f32 parameters.
+///
+/// Inputs are batches of row vectors, shape `(batch, input)`; outputs have
+/// shape `(batch, output)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "MlpRepr", into = "MlpRepr")]
+pub struct Mlp {
+    config: MlpConfig,
+    layers: Vec<Layer>,
+}
+
+/// Reusable buffers for [`Mlp::forward`]: one output buffer per layer,
+/// reallocated only when the batch size (or the network) changes.
+#[derive(Debug, Clone, Default)]
+pub struct Workspace {
+    bufs: Vec<Array2<f32>>,
+}
+
+impl Workspace {
+    /// An empty workspace; buffers are made on the first forward pass.
+    pub fn new() -> Self {
+        Workspace::default()
+    }
+}
+
+/// What [`Mlp::forward_tape`] records for [`Mlp::backward`] and
+/// [`Mlp::jvp`]: the input and every layer's activated output.
+///
+/// Each layer's input is kept, and its activated output; the derivatives of
+/// all four [`Activation`]s are exact functions of the output (see
+/// [`Activation::derivative_from_output`]), so no pre-activation copy is
+/// needed. Buffers are reused across calls at the same batch size.
+#[derive(Debug, Clone, Default)]
+pub struct Tape {
+    /// `acts[0]` is the input, `acts[i + 1]` the output of layer `i`.
+    acts: Vec<Array2<f32>>,
+}
+
+impl Tape {
+    /// An empty tape.
+    pub fn new() -> Self {
+        Tape::default()
+    }
+
+    /// Batch size of the last recorded forward pass (0 if none).
+    pub fn batch(&self) -> usize {
+        self.acts.first().map_or(0, |a| a.nrows())
+    }
+
+    /// The recorded input, shape `(batch, input)` (empty before any pass).
+    pub fn input(&self) -> ArrayView2<'_, f32> {
+        match self.acts.first() {
+            Some(a) => a.view(),
+            None => ArrayView2::from_shape((0, 0), &[]).expect("empty view"),
+        }
+    }
+
+    /// The recorded output, shape `(batch, output)` (empty before any pass).
+    pub fn output(&self) -> ArrayView2<'_, f32> {
+        match self.acts.last() {
+            Some(a) => a.view(),
+            None => ArrayView2::from_shape((0, 0), &[]).expect("empty view"),
+        }
+    }
+}
+
+fn ensure_shape(buf: &mut Array2<f32>, rows: usize, cols: usize) {
+    if buf.dim() != (rows, cols) {
+        *buf = Array2::zeros((rows, cols));
+    }
+}
+
+/// `out = act(out + b)` row by row, in one pass; the match sits outside the
+/// loops so each inner loop is a plain, vectorisable slice loop.
+fn bias_act(out: &mut Array2<f32>, b: &Array1<f32>, act: Activation) {
+    let n = b.len();
+    let b = b.as_slice().expect("biases are contiguous");
+    let data = out.as_slice_mut().expect("layer buffers are contiguous");
+    if n == 0 {
+        return;
+    }
+    match act {
+        Activation::Identity => {
+            for row in data.chunks_exact_mut(n) {
+                for (y, &bb) in row.iter_mut().zip(b) {
+                    *y += bb;
+                }
+            }
+        }
+        Activation::Relu => {
+            for row in data.chunks_exact_mut(n) {
+                for (y, &bb) in row.iter_mut().zip(b) {
+                    *y = (*y + bb).max(0.0);
+                }
+            }
+        }
+        Activation::LeakyRelu => {
+            for row in data.chunks_exact_mut(n) {
+                for (y, &bb) in row.iter_mut().zip(b) {
+                    let z = *y + bb;
+                    *y = if z > 0.0 {
+                        z
+                    } else {
+                        crate::activation::LEAKY_RELU_SLOPE * z
+                    };
+                }
+            }
+        }
+        Activation::Tanh => {
+            for row in data.chunks_exact_mut(n) {
+                for (y, &bb) in row.iter_mut().zip(b) {
+                    *y = (*y + bb).tanh();
+                }
+            }
+        }
+    }
+}
+
+/// `g *= act'(a)` element-wise, with the derivative taken from the output `a`.
+fn mul_act_derivative(g: &mut Array2<f32>, a: &Array2<f32>, act: Activation) {
+    let slope = crate::activation::LEAKY_RELU_SLOPE;
+    match act {
+        Activation::Identity => {}
+        Activation::Relu => g.zip_mut_with(a, |g, &a| {
+            if a <= 0.0 {
+                *g = 0.0
+            }
+        }),
+        Activation::LeakyRelu => g.zip_mut_with(a, |g, &a| {
+            if a <= 0.0 {
+                *g *= slope
+            }
+        }),
+        Activation::Tanh => g.zip_mut_with(a, |g, &a| *g *= 1.0 - a * a),
+    }
+}
+
+impl Mlp {
+    /// A network with weights drawn by `config.init` from `rng` and zero biases.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] when `config.validate()` fails.
+    pub fn new<R: Rng + ?Sized>(config: &MlpConfig, rng: &mut R) -> Result<Mlp> {
+        config.validate()?;
+        let widths = config.widths();
+        let layers = widths
+            .windows(2)
+            .map(|w| Layer {
+                w: init_weights(config.init, w[0], w[1], rng),
+                b: Array1::zeros(w[1]),
+            })
+            .collect();
+        Ok(Mlp {
+            config: config.clone(),
+            layers,
+        })
+    }
+
+    /// The config the network was built from.
+    pub fn config(&self) -> &MlpConfig {
+        &self.config
+    }
+
+    /// Width of the input.
+    pub fn input_dim(&self) -> usize {
+        self.config.input
+    }
+
+    /// Width of the output.
+    pub fn output_dim(&self) -> usize {
+        self.config.output
+    }
+
+    /// Number of trainable numbers (weights and biases).
+    pub fn num_params(&self) -> usize {
+        self.layers.iter().map(|l| l.w.len() + l.b.len()).sum()
+    }
+
+    /// The layers, input side first.
+    pub fn layers(&self) -> &[Layer] {
+        &self.layers
+    }
+
+    fn act_of(&self, i: usize) -> Activation {
+        if i + 1 == self.layers.len() {
+            self.config.output_activation
+        } else {
+            self.config.activation
+        }
+    }
+
+    /// Checks that `x` has shape `(batch, input)` and finite entries.
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] or [`Error::NonFinite`].
+    pub fn check_input(&self, x: ArrayView2<'_, f32>) -> Result<()> {
+        if x.ncols() != self.input_dim() {
+            return Err(Error::shape(
+                "network input columns",
+                self.input_dim(),
+                x.ncols(),
+            ));
+        }
+        if !x.iter().all(|v| v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "network input".into(),
+            });
+        }
+        Ok(())
+    }
+
+    fn assert_input(&self, x: &ArrayView2<'_, f32>, what: &str) {
+        assert_eq!(
+            x.ncols(),
+            self.input_dim(),
+            "{what}: input has {} columns, the network takes {}",
+            x.ncols(),
+            self.input_dim()
+        );
+    }
+
+    /// Inference: the output for a batch `x` of shape `(batch, input)`,
+    /// returned as a view of shape `(batch, output)` into `ws`.
+    ///
+    /// Allocates nothing once `ws` has seen this batch size with this network.
+    ///
+    /// # Panics
+    /// When `x` does not have `input_dim()` columns ([`Mlp::check_input`]
+    /// reports that as an error instead).
+    pub fn forward<'w>(
+        &self,
+        x: ArrayView2<'_, f32>,
+        ws: &'w mut Workspace,
+    ) -> ArrayView2<'w, f32> {
+        self.assert_input(&x, "Mlp::forward");
+        let batch = x.nrows();
+        let n = self.layers.len();
+        ws.bufs.resize_with(n, || Array2::zeros((0, 0)));
+        for (i, layer) in self.layers.iter().enumerate() {
+            let (prev, rest) = ws.bufs.split_at_mut(i);
+            let out = &mut rest[0];
+            ensure_shape(out, batch, layer.w.ncols());
+            if i == 0 {
+                general_mat_mul(1.0, &x, &layer.w, 0.0, out);
+            } else {
+                general_mat_mul(1.0, &prev[i - 1], &layer.w, 0.0, out);
+            }
+            bias_act(out, &layer.b, self.act_of(i));
+        }
+        ws.bufs[n - 1].view()
+    }
+
+    /// Inference into a new array of shape `(batch, output)`.
+    ///
+    /// # Panics
+    /// When `x` does not have `input_dim()` columns.
+    pub fn predict(&self, x: ArrayView2<'_, f32>) -> Array2<f32> {
+        let mut ws = Workspace::new();
+        self.forward(x, &mut ws);
+        ws.bufs.pop().expect("a network has at least one layer")
+    }
+
+    /// Forward pass for training: records what [`Mlp::backward`] and
+    /// [`Mlp::jvp`] need in `tape` and returns the output, shape
+    /// `(batch, output)`.
+    ///
+    /// # Panics
+    /// When `x` does not have `input_dim()` columns.
+    pub fn forward_tape<'t>(
+        &self,
+        x: ArrayView2<'_, f32>,
+        tape: &'t mut Tape,
+    ) -> ArrayView2<'t, f32> {
+        self.assert_input(&x, "Mlp::forward_tape");
+        let batch = x.nrows();
+        let n = self.layers.len();
+        tape.acts.resize_with(n + 1, || Array2::zeros((0, 0)));
+        ensure_shape(&mut tape.acts[0], batch, x.ncols());
+        tape.acts[0].assign(&x);
+        for (i, layer) in self.layers.iter().enumerate() {
+            let (prev, rest) = tape.acts.split_at_mut(i + 1);
+            let out = &mut rest[0];
+            ensure_shape(out, batch, layer.w.ncols());
+            general_mat_mul(1.0, &prev[i], &layer.w, 0.0, out);
+            bias_act(out, &layer.b, self.act_of(i));
+        }
+        tape.acts[n].view()
+    }
+
+    fn assert_tape(&self, tape: &Tape, what: &str) {
+        let ok = tape.acts.len() == self.layers.len() + 1
+            && tape.acts[0].ncols() == self.input_dim()
+            && self
+                .layers
+                .iter()
+                .zip(&tape.acts[1..])
+                .all(|(l, a)| a.ncols() == l.w.ncols());
+        assert!(
+            ok,
+            "{what}: the tape was not recorded by forward_tape of a network of this shape"
+        );
+    }
+
+    /// Reverse mode: adds (`+=`) to `grads` the parameter gradient of
+    /// `sum(grad_out * output)` at the tape's inputs, and returns its
+    /// gradient with respect to the input, shape `(batch, input)`.
+    ///
+    /// `grad_out` has shape `(batch, output)`; for a loss `L(output)` pass
+    /// `dL/d output` (for example the second value of [`crate::mse_loss`]).
+    ///
+    /// # Panics
+    /// When the tape was not recorded by this network's shape, `grad_out`'s
+    /// shape differs from the tape's output, or `grads` has another layout.
+    pub fn backward(
+        &self,
+        tape: &Tape,
+        grad_out: ArrayView2<'_, f32>,
+        grads: &mut Gradients,
+    ) -> Array2<f32> {
+        self.assert_tape(tape, "Mlp::backward");
+        let out = &tape.acts[self.layers.len()];
+        assert_eq!(
+            grad_out.dim(),
+            out.dim(),
+            "Mlp::backward: grad_out shape differs from the output's"
+        );
+        assert!(
+            grads.matches(self),
+            "Mlp::backward: gradients have another network's layout"
+        );
+        let mut g = grad_out.to_owned();
+        for i in (0..self.layers.len()).rev() {
+            let layer = &self.layers[i];
+            mul_act_derivative(&mut g, &tape.acts[i + 1], self.act_of(i));
+            let lg = &mut grads.layers_mut()[i];
+            general_mat_mul(1.0, &tape.acts[i].t(), &g, 1.0, &mut lg.dw);
+            let db = lg.db.as_slice_mut().expect("contiguous biases");
+            let width = db.len();
+            for row in g.as_slice().expect("contiguous").chunks_exact(width) {
+                for (d, &v) in db.iter_mut().zip(row) {
+                    *d += v;
+                }
+            }
+            let mut g_in = Array2::zeros((g.nrows(), layer.w.nrows()));
+            general_mat_mul(1.0, &g, &layer.w.t(), 0.0, &mut g_in);
+            g = g_in;
+        }
+        g
+    }
+
+    /// Forward mode: the derivative of the output at the tape's inputs along
+    /// the parameter direction `dir` (`J v`), shape `(batch, output)`.
+    ///
+    /// Together with [`Mlp::backward`] (`J^T u`) this gives Fisher-vector
+    /// products without materialising `J`.
+    ///
+    /// # Panics
+    /// When the tape was not recorded by this network's shape or `dir` has
+    /// another layout.
+    pub fn jvp(&self, tape: &Tape, dir: &Gradients) -> Array2<f32> {
+        self.assert_tape(tape, "Mlp::jvp");
+        assert!(
+            dir.matches(self),
+            "Mlp::jvp: direction has another network's layout"
+        );
+        let batch = tape.batch();
+        let mut t: Option<Array2<f32>> = None;
+        for (i, layer) in self.layers.iter().enumerate() {
+            let d = &dir.layers()[i];
+            let mut dz = Array2::zeros((batch, layer.w.ncols()));
+            general_mat_mul(1.0, &tape.acts[i], &d.dw, 0.0, &mut dz);
+            if let Some(t) = &t {
+                general_mat_mul(1.0, t, &layer.w, 1.0, &mut dz);
+            }
+            dz += &d.db.view().insert_axis(Axis(0));
+            mul_act_derivative(&mut dz, &tape.acts[i + 1], self.act_of(i));
+            t = Some(dz);
+        }
+        t.expect("a network has at least one layer")
+    }
+
+    /// Zero gradients with this network's layout.
+    pub fn zero_grads(&self) -> Gradients {
+        Gradients::zeros(self)
+    }
+
+    /// All parameters: layer by layer, weights in row-major `(in, out)`
+    /// order, then biases. Length `num_params()`.
+    pub fn params_flat(&self) -> Vec<f32> {
+        let mut v = Vec::with_capacity(self.num_params());
+        for l in &self.layers {
+            v.extend(l.w.iter());
+            v.extend(l.b.iter());
+        }
+        v
+    }
+
+    /// Sets all parameters from the layout of [`Mlp::params_flat`].
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] when `p.len() != num_params()`,
+    /// [`Error::NonFinite`] when an entry is NaN or infinite (nothing is
+    /// changed in either case).
+    pub fn set_params_flat(&mut self, p: &[f32]) -> Result<()> {
+        if p.len() != self.num_params() {
+            return Err(Error::shape(
+                "Mlp::set_params_flat",
+                self.num_params(),
+                p.len(),
+            ));
+        }
+        if !p.iter().all(|x| x.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "Mlp::set_params_flat parameters".into(),
+            });
+        }
+        let mut k = 0;
+        for l in &mut self.layers {
+            for (d, s) in l.w.iter_mut().zip(&p[k..]) {
+                *d = *s;
+            }
+            k += l.w.len();
+            for (d, s) in l.b.iter_mut().zip(&p[k..]) {
+                *d = *s;
+            }
+            k += l.b.len();
+        }
+        Ok(())
+    }
+
+    /// Mutable access to the layers, for optimisers in this crate. Shapes
+    /// must not change.
+    pub(crate) fn layers_mut(&mut self) -> &mut [Layer] {
+        &mut self.layers
+    }
+
+    /// The network as a JSON document `{"format": "red-nets/mlp", "version":
+    /// 1, "mlp": {"config": .., "layers": [{"w": [..], "b": [..]}, ..]}}`,
+    /// weights row-major `(in, out)`. f32 values round-trip exactly.
+    ///
+    /// # Errors
+    /// [`Error::Format`] if serialisation fails (it does not for valid networks).
+    pub fn to_json(&self) -> Result<String> {
+        let doc = SavedMlp {
+            format: MLP_FORMAT.into(),
+            version: MLP_FORMAT_VERSION,
+            mlp: self.clone(),
+        };
+        serde_json::to_string(&doc).map_err(|e| Error::Format {
+            path: None,
+            reason: e.to_string(),
+        })
+    }
+
+    /// Reads a network written by [`Mlp::to_json`].
+    ///
+    /// # Errors
+    /// [`Error::Format`] when the text is not such a document, names another
+    /// format or version, or its arrays disagree with its config.
+    pub fn from_json(s: &str) -> Result<Mlp> {
+        parse_saved(s).map_err(|reason| Error::Format { path: None, reason })
+    }
+
+    /// Writes [`Mlp::to_json`] to `path`.
+    ///
+    /// # Errors
+    /// [`Error::Io`] when the file cannot be written.
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let s = self.to_json()?;
+        std::fs::write(path, s).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// Reads a network saved by [`Mlp::save`].
+    ///
+    /// # Errors
+    /// [`Error::Io`] when the file cannot be read, [`Error::Format`] (with
+    /// the path) when its content is not a valid saved network.
+    pub fn load(path: &Path) -> Result<Mlp> {
+        let s = std::fs::read_to_string(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        parse_saved(&s).map_err(|reason| Error::Format {
+            path: Some(path.to_path_buf()),
+            reason,
+        })
+    }
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SavedMlp {
+    format: String,
+    version: u32,
+    mlp: Mlp,
+}
+
+#[derive(Deserialize)]
+struct SavedHeader {
+    format: String,
+    version: u32,
+}
+
+fn parse_saved(s: &str) -> std::result::Result<Mlp, String> {
+    let header: SavedHeader = serde_json::from_str::<serde_json::Value>(s)
+        .and_then(serde_json::from_value)
+        .map_err(|e| format!("not a saved red-nets network: {e}"))?;
+    if header.format != MLP_FORMAT {
+        return Err(format!(
+            "format is `{}`, expected `{MLP_FORMAT}`",
+            header.format
+        ));
+    }
+    if header.version != MLP_FORMAT_VERSION {
+        return Err(format!(
+            "format version {} is not supported (this build reads version {MLP_FORMAT_VERSION})",
+            header.version
+        ));
+    }
+    let doc: SavedMlp = serde_json::from_str(s).map_err(|e| e.to_string())?;
+    Ok(doc.mlp)
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LayerRepr {
+    w: Vec<f32>,
+    b: Vec<f32>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MlpRepr {
+    config: MlpConfig,
+    layers: Vec<LayerRepr>,
+}
+
+impl From<Mlp> for MlpRepr {
+    fn from(m: Mlp) -> Self {
+        MlpRepr {
+            layers: m
+                .layers
+                .iter()
+                .map(|l| LayerRepr {
+                    w: l.w.iter().copied().collect(),
+                    b: l.b.to_vec(),
+                })
+                .collect(),
+            config: m.config,
+        }
+    }
+}
+
+impl TryFrom<MlpRepr> for Mlp {
+    type Error = String;
+
+    fn try_from(r: MlpRepr) -> std::result::Result<Self, String> {
+        r.config.validate().map_err(|e| e.to_string())?;
+        let widths = r.config.widths();
+        if r.layers.len() != widths.len() - 1 {
+            return Err(format!(
+                "{} layers stored, the config has {}",
+                r.layers.len(),
+                widths.len() - 1
+            ));
+        }
+        let mut layers = Vec::with_capacity(r.layers.len());
+        for (i, (l, w)) in r.layers.into_iter().zip(widths.windows(2)).enumerate() {
+            if l.w.len() != w[0] * w[1] || l.b.len() != w[1] {
+                return Err(format!(
+                    "layer {i}: {} weights and {} biases stored, the config needs {} x {} and {}",
+                    l.w.len(),
+                    l.b.len(),
+                    w[0],
+                    w[1],
+                    w[1]
+                ));
+            }
+            if !l.w.iter().chain(&l.b).all(|x| x.is_finite()) {
+                return Err(format!("layer {i}: non-finite parameter"));
+            }
+            let wm = Array2::from_shape_vec((w[0], w[1]), l.w).map_err(|e| e.to_string())?;
+            layers.push(Layer {
+                w: wm,
+                b: Array1::from(l.b),
+            });
+        }
+        Ok(Mlp {
+            config: r.config,
+            layers,
+        })
+    }
+}
