@@ -5,8 +5,9 @@
 //! central differences with step `H = 1e-3` evaluated in f32 and differenced
 //! in f64. For relu and leaky relu a perturbation that flips the sign of any
 //! hidden or output pre-activation (seen as a sign flip of the layer's
-//! output) crosses a kink; such coordinates are skipped and counted, and the
-//! test asserts that few were skipped.
+//! output) crosses a kink; inputs and parameters are drawn so that every
+//! kinked pre-activation is at least 0.02 from zero, and any coordinate that
+//! still crosses is skipped and counted (the tests demand at most one in ten).
 //!
 //! Tolerance: `|fd - analytic| <= ATOL + RTOL * |analytic|` with `ATOL =
 //! 2e-3`, `RTOL = 1e-2`. The f32 rounding of `f` (|f| of order 1, ~1e-7
@@ -35,7 +36,7 @@ fn random_matrix(rng: &mut ChaCha8Rng, r: usize, c: usize) -> Array2<f32> {
     Array2::from_shape_simple_fn((r, c), || rng.random_range(-1.0f32..1.0))
 }
 
-/// Output and the sign pattern of every layer output (kink detector).
+/// The objective and the sign pattern of kinked pre-activations (kink detector).
 fn eval(net: &Mlp, x: ArrayView2<'_, f32>, u: &Array2<f32>) -> (f64, Vec<bool>) {
     let mut tape = Tape::new();
     let out = net.forward_tape(x, &mut tape).to_owned();
@@ -44,21 +45,65 @@ fn eval(net: &Mlp, x: ArrayView2<'_, f32>, u: &Array2<f32>) -> (f64, Vec<bool>) 
         .zip(u.iter())
         .map(|(&a, &b)| a as f64 * b as f64)
         .sum();
-    // Signs of every pre-activation, from a plain reference pass.
+    // Signs of every kinked pre-activation, from a plain reference pass.
     let mut signs = Vec::new();
     let mut h = x.to_owned();
     let n = net.layers().len();
     for (i, l) in net.layers().iter().enumerate() {
         let z = h.dot(&l.w) + &l.b;
-        signs.extend(z.iter().map(|&v| v > 0.0));
         let act = if i + 1 == n {
             net.config().output_activation
         } else {
             net.config().activation
         };
+        if matches!(act, Activation::Relu | Activation::LeakyRelu) {
+            signs.extend(z.iter().map(|&v| v > 0.0));
+        }
         h = z.mapv(|v| act.apply(v));
     }
     (f, signs)
+}
+
+/// Smallest |pre-activation| over layers whose activation has a kink.
+fn kink_margin(net: &Mlp, x: &Array2<f32>) -> f32 {
+    let mut h = x.clone();
+    let mut margin = f32::INFINITY;
+    let n = net.layers().len();
+    for (i, l) in net.layers().iter().enumerate() {
+        let z = h.dot(&l.w) + &l.b;
+        let act = if i + 1 == n {
+            net.config().output_activation
+        } else {
+            net.config().activation
+        };
+        if matches!(act, Activation::Relu | Activation::LeakyRelu) {
+            margin = z.iter().fold(margin, |m, v| m.min(v.abs()));
+        }
+        h = z.mapv(|v| act.apply(v));
+    }
+    margin
+}
+
+/// Jitters the parameters of `base` and draws inputs until no kinked
+/// pre-activation lies within 0.02 of zero (a step of H = 1e-3 then cannot
+/// cross a kink unless a derivative exceeds 20); gives up after 200 draws
+/// and returns the last one.
+fn away_from_kinks(base: &Mlp, batch: usize, rng: &mut ChaCha8Rng) -> (Mlp, Array2<f32>) {
+    let p0 = base.params_flat();
+    let mut net = base.clone();
+    let mut x = random_matrix(rng, batch, base.input_dim());
+    for _ in 0..200 {
+        let p: Vec<f32> = p0
+            .iter()
+            .map(|&w| w + rng.random_range(-0.2f32..0.2))
+            .collect();
+        net.set_params_flat(&p).unwrap();
+        x = random_matrix(rng, batch, base.input_dim());
+        if kink_margin(&net, &x) >= 0.02 {
+            break;
+        }
+    }
+    (net, x)
 }
 
 fn close(fd: f64, an: f64) -> bool {
@@ -223,8 +268,7 @@ fn every_activation_as_output_layer() {
         let config = MlpConfig::new(2, &[3], 3)
             .with_activation(Activation::Tanh)
             .with_output_activation(act);
-        let net = Mlp::new(&config, &mut rng).unwrap();
-        let x = random_matrix(&mut rng, 3, 2);
+        let (net, x) = away_from_kinks(&Mlp::new(&config, &mut rng).unwrap(), 3, &mut rng);
         let rep = check_gradients(&net, &x, &mut rng);
         assert!(
             rep.skipped * 10 <= rep.checked,
@@ -313,7 +357,13 @@ fn activation_strategy() -> impl Strategy<Value = Activation> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 40, ..ProptestConfig::default() })]
+    // A fixed seed keeps CI deterministic; PROPTEST_CASES=2000 explores more.
+    #![proptest_config(ProptestConfig {
+        cases: 64,
+        rng_seed: proptest::test_runner::RngSeed::Fixed(0x5eed_0001),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn finite_differences_random_shapes(
@@ -332,12 +382,9 @@ proptest! {
             .with_activation(act)
             .with_output_activation(out_act)
             .with_init(init);
-        let mut net = Mlp::new(&config, &mut rng).unwrap();
-        let p: Vec<f32> = net.params_flat().iter().map(|&w| w + rng.random_range(-0.1f32..0.1)).collect();
-        net.set_params_flat(&p).unwrap();
-        let x = random_matrix(&mut rng, batch, input);
+        let (net, x) = away_from_kinks(&Mlp::new(&config, &mut rng).unwrap(), batch, &mut rng);
         let rep = check_gradients(&net, &x, &mut rng);
-        prop_assert!(rep.skipped <= 2 + rep.checked / 5, "{} skipped, {} checked", rep.skipped, rep.checked);
+        prop_assert!(rep.skipped * 10 <= rep.checked, "{} skipped, {} checked", rep.skipped, rep.checked);
         check_jvp(&net, &x, &mut rng);
     }
 }
