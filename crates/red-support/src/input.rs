@@ -1,0 +1,204 @@
+//! The estimators' input: the concatenation `x = [s, a]`, checked, and
+//! optionally standardised with the expert statistics.
+
+use ndarray::{Array1, Array2, ArrayView2, Axis, s};
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Result};
+
+/// A standard deviation below this is treated as a constant dimension and
+/// left unscaled (dividing by it would blow any other value up).
+const MIN_STD: f64 = 1e-8;
+
+/// Maps state-action batches to the estimator's input rows `[s, a]`,
+/// standardised per dimension when fitted with `standardize = true`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputMap {
+    /// Length of a state.
+    pub obs_dim: usize,
+    /// Length of an action.
+    pub act_dim: usize,
+    /// Per-dimension mean subtracted from `[s, a]` (zeros when not
+    /// standardising).
+    pub mean: Vec<f64>,
+    /// Per-dimension scale `[s, a]` is divided by (ones when not
+    /// standardising).
+    pub scale: Vec<f64>,
+}
+
+impl InputMap {
+    /// Checks the expert batch and builds the map: the identity, or the
+    /// standardisation by the expert mean and standard deviation
+    /// (dimensions with a standard deviation below 1e-8 are only centred).
+    ///
+    /// # Errors
+    /// As [`check_pairs`], and [`Error::TooFewSamples`] for an empty batch.
+    pub fn fit(
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+        standardize: bool,
+    ) -> Result<Self> {
+        let (obs_dim, act_dim) = (states.ncols(), actions.ncols());
+        check_pairs(states, actions, obs_dim, act_dim)?;
+        let n = states.nrows();
+        if n == 0 {
+            return Err(Error::TooFewSamples {
+                what: "a support estimator".into(),
+                need: 1,
+                got: 0,
+            });
+        }
+        let d = obs_dim + act_dim;
+        let (mut mean, mut scale) = (vec![0.0; d], vec![1.0; d]);
+        if standardize {
+            let x = concat(states, actions);
+            for j in 0..d {
+                let col = x.column(j);
+                let m = col.sum() / n as f64;
+                let var = col.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n as f64;
+                mean[j] = m;
+                let sd = var.sqrt();
+                scale[j] = if sd < MIN_STD { 1.0 } else { sd };
+            }
+        }
+        Ok(Self {
+            obs_dim,
+            act_dim,
+            mean,
+            scale,
+        })
+    }
+
+    /// Length of an input row, `obs_dim + act_dim`.
+    pub fn dim(&self) -> usize {
+        self.obs_dim + self.act_dim
+    }
+
+    /// The input rows of a batch: `(n, obs_dim)` and `(n, act_dim)` in,
+    /// `(n, obs_dim + act_dim)` out.
+    ///
+    /// # Errors
+    /// As [`check_pairs`].
+    pub fn apply(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<Array2<f64>> {
+        check_pairs(states, actions, self.obs_dim, self.act_dim)?;
+        let mut x = concat(states, actions);
+        for mut row in x.rows_mut() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = (*v - self.mean[j]) / self.scale[j];
+            }
+        }
+        Ok(x)
+    }
+
+    /// Turns a gradient with respect to the input rows, `(n, dim)`, into one
+    /// with respect to the actions, `(n, act_dim)` (the chain rule through
+    /// the standardisation).
+    pub fn action_grad(&self, grad_x: ArrayView2<'_, f64>) -> Array2<f64> {
+        let mut g = grad_x.slice(s![.., self.obs_dim..]).to_owned();
+        let inv: Array1<f64> = self.scale[self.obs_dim..].iter().map(|v| 1.0 / v).collect();
+        g *= &inv.view().insert_axis(Axis(0));
+        g
+    }
+}
+
+/// Checks that `states` is `(n, obs_dim)`, `actions` is `(n, act_dim)` and
+/// all values are finite.
+///
+/// # Errors
+/// [`Error::ShapeMismatch`] or [`Error::NonFinite`].
+pub fn check_pairs(
+    states: ArrayView2<'_, f64>,
+    actions: ArrayView2<'_, f64>,
+    obs_dim: usize,
+    act_dim: usize,
+) -> Result<()> {
+    if states.ncols() != obs_dim {
+        return Err(Error::ShapeMismatch {
+            what: "states".into(),
+            expected: format!("{obs_dim} columns"),
+            got: format!("{} columns", states.ncols()),
+        });
+    }
+    if actions.ncols() != act_dim {
+        return Err(Error::ShapeMismatch {
+            what: "actions".into(),
+            expected: format!("{act_dim} columns"),
+            got: format!("{} columns", actions.ncols()),
+        });
+    }
+    if states.nrows() != actions.nrows() {
+        return Err(Error::ShapeMismatch {
+            what: "actions".into(),
+            expected: format!("{} rows, as many as the states", states.nrows()),
+            got: format!("{} rows", actions.nrows()),
+        });
+    }
+    if states.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "states".into(),
+        });
+    }
+    if actions.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "actions".into(),
+        });
+    }
+    Ok(())
+}
+
+fn concat(states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Array2<f64> {
+    let (n, o, a) = (states.nrows(), states.ncols(), actions.ncols());
+    let mut x = Array2::zeros((n, o + a));
+    x.slice_mut(s![.., ..o]).assign(&states);
+    x.slice_mut(s![.., o..]).assign(&actions);
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ndarray::array;
+
+    #[test]
+    fn standardisation_gives_zero_mean_unit_std_and_keeps_constant_dims() {
+        let s = array![[1.0, 5.0], [3.0, 5.0], [5.0, 5.0]];
+        let a = array![[0.0], [1.0], [2.0]];
+        let map = InputMap::fit(s.view(), a.view(), true).unwrap();
+        let x = map.apply(s.view(), a.view()).unwrap();
+        for j in [0, 2] {
+            let c = x.column(j);
+            assert!(c.sum().abs() < 1e-12);
+            assert!((c.mapv(|v| v * v).sum() / 3.0 - 1.0).abs() < 1e-12);
+        }
+        // The constant dimension is centred, not scaled.
+        assert_eq!(map.scale[1], 1.0);
+        assert!(x.column(1).iter().all(|v| *v == 0.0));
+        let g = map.action_grad(Array2::ones((3, 3)).view());
+        assert!((g[[0, 0]] - 1.0 / map.scale[2]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_batches_are_rejected_with_the_field() {
+        let map = InputMap::fit(Array2::zeros((2, 2)).view(), Array2::zeros((2, 1)).view(), false)
+            .unwrap();
+        let e = map
+            .apply(Array2::zeros((2, 3)).view(), Array2::zeros((2, 1)).view())
+            .unwrap_err();
+        assert!(e.to_string().contains("states"), "{e}");
+        let e = map
+            .apply(Array2::zeros((2, 2)).view(), Array2::zeros((3, 1)).view())
+            .unwrap_err();
+        assert!(e.to_string().contains("actions"), "{e}");
+        let mut a = Array2::zeros((2, 1));
+        a[[1, 0]] = f64::NAN;
+        assert!(matches!(
+            map.apply(Array2::zeros((2, 2)).view(), a.view()),
+            Err(Error::NonFinite { .. })
+        ));
+    }
+}

@@ -1,0 +1,377 @@
+//! Random network distillation as support estimation (paper Sec. 3.1-3.2,
+//! Eq. 5-6).
+//!
+//! A fixed, randomly initialised target `f_θ: [s, a] -> R^K` and a
+//! predictor `f_θ̂` trained by regression on the expert pairs. The score is
+//! the MEAN over the `K` outputs of `(f_θ̂(x) - f_θ(x))^2`, as in the
+//! release (the paper writes the squared norm; the two differ by the factor
+//! `K`, which `σ1` absorbs). Each output of the target is one of the `K`
+//! random prediction problems of Eq. 5, so this is Eq. 6.
+//!
+//! `ensemble > 1` trains that many independent target/predictor pairs and
+//! averages their scores, Eq. 6 with `K * ensemble` problems.
+
+use ndarray::{Array1, Array2, ArrayView2};
+use rand::Rng;
+use red_nets::{Activation, AdamConfig, FrozenMlp, Init, Mlp, MlpConfig, Tape, Workspace};
+use serde::{Deserialize, Serialize};
+
+use crate::estimator::{FitProgress, SupportEstimatorConfig, SupportModel};
+use crate::input::InputMap;
+use crate::train::{Regression, fit_regression, to_f32};
+use crate::{Error, Result};
+
+/// Hyperparameters of [`Rnd`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RndConfig {
+    /// Hidden widths of the fixed target.
+    pub target_hidden: Vec<usize>,
+    /// Hidden widths of the trained predictor.
+    pub predictor_hidden: Vec<usize>,
+    /// Width `K` of both outputs (linear).
+    pub output: usize,
+    /// Hidden activation of both networks.
+    pub activation: Activation,
+    /// Weight initialisation of both networks (biases start at 0).
+    pub init: Init,
+    /// Number of independent target/predictor pairs whose scores are
+    /// averaged.
+    pub ensemble: usize,
+    /// Passes over the expert pairs.
+    pub epochs: usize,
+    /// Minibatch size.
+    pub batch_size: usize,
+    /// The predictor's optimiser.
+    pub adam: AdamConfig,
+    /// Standardise `[s, a]` with the expert mean and standard deviation.
+    pub standardize: bool,
+}
+
+impl Default for RndConfig {
+    /// The RED release's configuration (reference/original-red.md): target
+    /// 4 x 128 leaky relu, predictor 1 x 128 leaky relu, linear outputs of
+    /// 128, Glorot-uniform weights and zero biases, Adam lr 1e-3, batch 32,
+    /// shuffled, 200 epochs, raw (unstandardised) input. `ensemble = 1`:
+    /// the release trains one pair.
+    fn default() -> Self {
+        Self {
+            target_hidden: vec![128; 4],
+            predictor_hidden: vec![128],
+            output: 128,
+            activation: Activation::LeakyRelu,
+            init: Init::GlorotUniform,
+            ensemble: 1,
+            epochs: 200,
+            batch_size: 32,
+            adam: AdamConfig::with_lr(1e-3),
+            standardize: false,
+        }
+    }
+}
+
+impl RndConfig {
+    /// Rejects nonsense values, naming the field.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`].
+    pub fn validate(&self) -> Result<()> {
+        for (field, v) in [
+            ("output", self.output),
+            ("ensemble", self.ensemble),
+            ("epochs", self.epochs),
+            ("batch_size", self.batch_size),
+        ] {
+            if v == 0 {
+                return Err(Error::InvalidConfig {
+                    field: field.into(),
+                    reason: "must be at least 1".into(),
+                });
+            }
+        }
+        for (field, h) in [
+            ("target_hidden", &self.target_hidden),
+            ("predictor_hidden", &self.predictor_hidden),
+        ] {
+            if let Some(i) = h.iter().position(|&w| w == 0) {
+                return Err(Error::InvalidConfig {
+                    field: format!("{field}[{i}]"),
+                    reason: "a layer width must be at least 1".into(),
+                });
+            }
+        }
+        self.adam.validate().map_err(|e| prefix("adam", e))?;
+        Ok(())
+    }
+
+    fn net_config(&self, input: usize, hidden: &[usize]) -> MlpConfig {
+        MlpConfig {
+            input,
+            hidden: hidden.to_vec(),
+            output: self.output,
+            activation: self.activation,
+            output_activation: Activation::Identity,
+            init: self.init,
+        }
+    }
+}
+
+/// Prefixes the field of a red-nets config error with `what.`.
+pub(crate) fn prefix(what: &str, e: red_nets::Error) -> Error {
+    match e {
+        red_nets::Error::InvalidConfig { field, reason } => Error::InvalidConfig {
+            field: format!("{what}.{field}"),
+            reason,
+        },
+        other => Error::from(other),
+    }
+}
+
+/// One fixed target and its trained predictor.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RndPair {
+    /// The fixed random target `f_θ`.
+    pub target: FrozenMlp,
+    /// The predictor `f_θ̂` trained on the expert pairs.
+    pub predictor: Mlp,
+}
+
+/// A fitted RND support estimator.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Rnd {
+    input: InputMap,
+    pairs: Vec<RndPair>,
+    /// The mean batch loss of each pair's last epoch.
+    final_losses: Vec<f64>,
+}
+
+impl Rnd {
+    /// The target/predictor pairs.
+    pub fn pairs(&self) -> &[RndPair] {
+        &self.pairs
+    }
+
+    /// The mean training loss of each pair's last epoch.
+    pub fn final_losses(&self) -> &[f64] {
+        &self.final_losses
+    }
+
+    /// Scores of input rows already mapped, `(b, d)` f32.
+    fn score_rows(&self, x: ArrayView2<'_, f32>) -> Array1<f64> {
+        let mut out = Array1::<f64>::zeros(x.nrows());
+        let (mut wt, mut wp) = (Workspace::new(), Workspace::new());
+        for pair in &self.pairs {
+            let t = pair.target.forward(x, &mut wt);
+            let p = pair.predictor.forward(x, &mut wp);
+            let k = t.ncols() as f64;
+            for ((o, tr), pr) in out.iter_mut().zip(t.rows()).zip(p.rows()) {
+                let s: f32 = tr.iter().zip(pr).map(|(a, b)| (b - a) * (b - a)).sum();
+                *o += f64::from(s) / k;
+            }
+        }
+        out /= self.pairs.len() as f64;
+        out
+    }
+}
+
+impl SupportModel for Rnd {
+    fn obs_dim(&self) -> usize {
+        self.input.obs_dim
+    }
+
+    fn act_dim(&self) -> usize {
+        self.input.act_dim
+    }
+
+    fn score(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<Array1<f64>> {
+        let x = to_f32(self.input.apply(states, actions)?.view());
+        Ok(self.score_rows(x.view()))
+    }
+
+    fn score_grad_action(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<(Array1<f64>, Array2<f64>)> {
+        let x = to_f32(self.input.apply(states, actions)?.view());
+        let n = x.nrows();
+        let kpairs = self.pairs.len() as f32;
+        let mut scores = Array1::<f64>::zeros(n);
+        let mut grad_x = Array2::<f32>::zeros(x.raw_dim());
+        let (mut tt, mut tp) = (Tape::new(), Tape::new());
+        for pair in &self.pairs {
+            let target = pair.target.as_mlp();
+            let t = target.forward_tape(x.view(), &mut tt).to_owned();
+            let p = pair.predictor.forward_tape(x.view(), &mut tp);
+            let k = t.ncols() as f32;
+            // L = mean_j (p_j - t_j)^2, so dL/dp = 2 (p - t) / K = -dL/dt.
+            let diff = &p - &t;
+            for (o, row) in scores.iter_mut().zip(diff.rows()) {
+                *o += f64::from(row.iter().map(|d| d * d).sum::<f32>() / k);
+            }
+            let gout = diff.mapv(|d| 2.0 * d / (k * kpairs));
+            let mut gp = pair.predictor.zero_grads();
+            let mut gt = target.zero_grads();
+            grad_x += &pair.predictor.backward(&tp, gout.view(), &mut gp);
+            grad_x -= &target.backward(&tt, gout.view(), &mut gt);
+        }
+        scores /= self.pairs.len() as f64;
+        let grad_x = grad_x.mapv(f64::from);
+        Ok((scores, self.input.action_grad(grad_x.view())))
+    }
+}
+
+impl SupportEstimatorConfig for RndConfig {
+    type Model = Rnd;
+
+    fn validate(&self) -> Result<()> {
+        RndConfig::validate(self)
+    }
+
+    /// Draws each target and predictor from `rng` (target first), then
+    /// trains each predictor in turn. The target's outputs on the expert
+    /// inputs are computed once, not per epoch (the target is fixed).
+    /// Progress counts epochs over all pairs.
+    fn fit<R: Rng + ?Sized>(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+        rng: &mut R,
+        progress: &mut dyn FnMut(FitProgress),
+    ) -> Result<Rnd> {
+        self.validate()?;
+        let input = InputMap::fit(states, actions, self.standardize)?;
+        let x = to_f32(input.apply(states, actions)?.view());
+        let d = input.dim();
+        let mut pairs = Vec::with_capacity(self.ensemble);
+        let mut final_losses = Vec::with_capacity(self.ensemble);
+        for e in 0..self.ensemble {
+            let target = Mlp::new(&self.net_config(d, &self.target_hidden), rng)
+                .map_err(|e| prefix("target", e))?;
+            let mut predictor = Mlp::new(&self.net_config(d, &self.predictor_hidden), rng)
+                .map_err(|e| prefix("predictor", e))?;
+            let y = target.predict(x.view());
+            let loss = fit_regression(
+                &mut predictor,
+                x.view(),
+                y.view(),
+                &Regression {
+                    epochs: self.epochs,
+                    batch_size: self.batch_size,
+                    adam: &self.adam,
+                    progress_offset: e * self.epochs,
+                    progress_total: self.ensemble * self.epochs,
+                },
+                rng,
+                progress,
+            )?;
+            pairs.push(RndPair {
+                target: FrozenMlp::new(target),
+                predictor,
+            });
+            final_losses.push(loss);
+        }
+        Ok(Rnd {
+            input,
+            pairs,
+            final_losses,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::estimator::no_progress;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn small() -> RndConfig {
+        RndConfig {
+            target_hidden: vec![32, 32],
+            predictor_hidden: vec![32],
+            output: 16,
+            epochs: 5,
+            ensemble: 2,
+            ..Default::default()
+        }
+    }
+
+    fn data(n: usize, seed: u64) -> (Array2<f64>, Array2<f64>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        (
+            Array2::from_shape_fn((n, 3), |_| rng.random_range(-1.0..1.0)),
+            Array2::from_shape_fn((n, 2), |_| rng.random_range(-1.0..1.0)),
+        )
+    }
+
+    #[test]
+    fn gradient_matches_finite_differences() {
+        let (s, a) = data(64, 1);
+        for standardize in [false, true] {
+            // A smooth activation, so finite differences do not straddle
+            // the kinks of leaky relu (the backward pass is the same code
+            // for every activation).
+            let cfg = RndConfig {
+                standardize,
+                activation: Activation::Tanh,
+                ..small()
+            };
+            let model = cfg
+                .fit(s.view(), a.view(), &mut ChaCha8Rng::seed_from_u64(2), &mut no_progress)
+                .unwrap();
+            let (qs, qa) = data(5, 3);
+            let (sc, g) = model.score_grad_action(qs.view(), qa.view()).unwrap();
+            let plain = model.score(qs.view(), qa.view()).unwrap();
+            for (x, y) in sc.iter().zip(&plain) {
+                assert!((x - y).abs() <= 1e-6 * y.abs().max(1e-6));
+            }
+            // f32 networks: a step of 1e-2 keeps the rounding of the
+            // difference quotient well below the tolerance.
+            let eps = 1e-2;
+            for r in 0..5 {
+                for j in 0..2 {
+                    let mut ap = qa.clone();
+                    ap[[r, j]] += eps;
+                    let mut am = qa.clone();
+                    am[[r, j]] -= eps;
+                    let fd = (model.score(qs.view(), ap.view()).unwrap()[r]
+                        - model.score(qs.view(), am.view()).unwrap()[r])
+                        / (2.0 * eps);
+                    let an = g[[r, j]];
+                    assert!(
+                        (fd - an).abs() <= 2e-2 * fd.abs().max(an.abs()) + 1e-4,
+                        "std {standardize} row {r} dim {j}: fd {fd} vs analytic {an}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn validation_names_the_field() {
+        let e = RndConfig {
+            batch_size: 0,
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.to_string().contains("batch_size"), "{e}");
+        let e = RndConfig {
+            target_hidden: vec![8, 0],
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.to_string().contains("target_hidden[1]"), "{e}");
+        let mut c = RndConfig::default();
+        c.adam.lr = -1.0;
+        assert!(c.validate().unwrap_err().to_string().contains("adam.lr"));
+    }
+}
