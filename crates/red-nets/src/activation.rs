@@ -35,7 +35,7 @@ impl Activation {
                     LEAKY_RELU_SLOPE * z
                 }
             }
-            Activation::Tanh => z.tanh(),
+            Activation::Tanh => tanh_f32(z),
             Activation::Identity => z,
         }
     }
@@ -59,7 +59,7 @@ impl Activation {
                 }
             }
             Activation::Tanh => {
-                let t = z.tanh();
+                let t = tanh_f32(z);
                 1.0 - t * t
             }
             Activation::Identity => 1.0,
@@ -96,6 +96,59 @@ impl Activation {
     }
 }
 
+/// `tanh` in f32, written so that compilers vectorise loops over it
+/// (`f32::tanh` calls the C library once per element, which dominated a
+/// tanh policy's forward pass).
+///
+/// Below |x| = 0.55 an odd polynomial `x P(x^2)` (degree 11, fitted to
+/// tanh's relative error on [0, 0.55] by iteratively reweighted least
+/// squares, fit error 1e-9); above, `1 - 2 / (e^{2|x|} + 1)` with `e^y`
+/// from `2^n e^r`, `|r| <= ln 2 / 2`, and a degree-7 Taylor polynomial
+/// (truncation 5e-9). Measured error against f64 `tanh`: see the unit test
+/// `fast_tanh_is_accurate` (at most a few units in the last place). NaN
+/// propagates; `tanh(+-inf) = +-1`.
+#[inline(always)]
+pub fn tanh_f32(x: f32) -> f32 {
+    // Fitted with numpy (weighted lstsq on Chebyshev nodes in x^2).
+    const P0: f32 = 0.999_999_999_1;
+    const P1: f32 = -0.333_333_109_6;
+    const P2: f32 = 0.133_324_607_4;
+    const P3: f32 = -0.053_842_706_47;
+    const P4: f32 = 0.021_039_672_47;
+    const P5: f32 = -0.006_235_555_583;
+    const SMALL: f32 = 0.55;
+    // 1.5 * 2^23: adding it rounds to an integer held in the low mantissa bits.
+    const MAGIC: f32 = 12_582_912.0;
+    const LOG2E: f32 = std::f32::consts::LOG2_E;
+    // ln 2 split so that n * LN2_HI is exact for the n used here (Cody-Waite).
+    const LN2_HI: f32 = 0.693_145_751_953_125;
+    const LN2_LO: f32 = 1.428_606_765_330_187e-6;
+
+    let a = x.abs();
+    let s = a * a;
+    let small = a * (P0 + s * (P1 + s * (P2 + s * (P3 + s * (P4 + s * P5)))));
+
+    // e^{2a}; tanh(10) rounds to 1 in f32, so 2a is capped at 20 (a NaN
+    // passes the comparison unchanged and stays NaN).
+    let y = 2.0 * a;
+    let y = if y > 20.0 { 20.0 } else { y };
+    let t = y * LOG2E + MAGIC;
+    let n = t - MAGIC;
+    let r = (y - n * LN2_HI) - n * LN2_LO;
+    let er = 1.0
+        + r * (1.0
+            + r * (0.5
+                + r * (1.0 / 6.0
+                    + r * (1.0 / 24.0
+                        + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0)))))));
+    let n_int = t.to_bits().wrapping_sub(MAGIC.to_bits());
+    let two_n = f32::from_bits(n_int.wrapping_add(127) << 23);
+    let large = 1.0 - 2.0 / (er * two_n + 1.0);
+
+    let v = if a < SMALL { small } else { large };
+    v.copysign(x)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -123,6 +176,48 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn fast_tanh_is_accurate() {
+        let mut worst_rel = 0.0f64;
+        let mut worst_at = 0.0f32;
+        let mut check = |x: f32| {
+            let got = tanh_f32(x) as f64;
+            let want = (x as f64).tanh();
+            let rel = if want == 0.0 {
+                got.abs()
+            } else {
+                ((got - want) / want).abs()
+            };
+            if rel > worst_rel {
+                worst_rel = rel;
+                worst_at = x;
+            }
+        };
+        for i in -240_000..=240_000 {
+            check(i as f32 * 5e-5);
+        }
+        for e in -40..4 {
+            let x = 2f32.powi(e) * 1.37;
+            check(x);
+            check(-x);
+        }
+        check(0.55);
+        check(0.549_999_95);
+        eprintln!("tanh_f32 worst relative error {worst_rel:e} at {worst_at}");
+        // About two units in the last place (f32's unit is 6e-8 relative).
+        assert!(
+            worst_rel < 2.5e-7,
+            "worst relative error {worst_rel} at {worst_at}"
+        );
+        assert_eq!(tanh_f32(0.0), 0.0);
+        assert!(tanh_f32(-0.0).is_sign_negative());
+        assert_eq!(tanh_f32(f32::INFINITY), 1.0);
+        assert_eq!(tanh_f32(f32::NEG_INFINITY), -1.0);
+        assert_eq!(tanh_f32(50.0), 1.0);
+        assert!(tanh_f32(f32::NAN).is_nan());
+        assert!(tanh_f32(1e-30) == 1e-30);
     }
 
     #[test]

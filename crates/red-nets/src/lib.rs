@@ -48,7 +48,7 @@ mod loss;
 mod mlp;
 mod optim;
 
-pub use activation::{Activation, LEAKY_RELU_SLOPE};
+pub use activation::{Activation, LEAKY_RELU_SLOPE, tanh_f32};
 pub use config::{Init, MlpConfig};
 pub use error::{Error, Result};
 pub use frozen::FrozenMlp;

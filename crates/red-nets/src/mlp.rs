@@ -138,7 +138,7 @@ fn bias_act(out: &mut Array2<f32>, b: &Array1<f32>, act: Activation) {
         Activation::Tanh => {
             for row in data.chunks_exact_mut(n) {
                 for (y, &bb) in row.iter_mut().zip(b) {
-                    *y = (*y + bb).tanh();
+                    *y = crate::activation::tanh_f32(*y + bb);
                 }
             }
         }
