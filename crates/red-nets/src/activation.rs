@@ -104,25 +104,26 @@ impl Activation {
 /// tanh's relative error on [0, 0.55] by iteratively reweighted least
 /// squares, fit error 1e-9); above, `1 - 2 / (e^{2|x|} + 1)` with `e^y`
 /// from `2^n e^r`, `|r| <= ln 2 / 2`, and a degree-7 Taylor polynomial
-/// (truncation 5e-9). Measured error against f64 `tanh`: see the unit test
-/// `fast_tanh_is_accurate` (at most a few units in the last place). NaN
-/// propagates; `tanh(+-inf) = +-1`.
+/// (truncation 5e-9). Largest relative error against f64 `tanh` measured
+/// on a sweep of [-12, 12] by the unit test `fast_tanh_is_accurate`: 1.6e-7
+/// (under three units in the last place). NaN propagates; `tanh(+-inf) = +-1`.
 #[inline(always)]
 pub fn tanh_f32(x: f32) -> f32 {
-    // Fitted with numpy (weighted lstsq on Chebyshev nodes in x^2).
-    const P0: f32 = 0.999_999_999_1;
-    const P1: f32 = -0.333_333_109_6;
-    const P2: f32 = 0.133_324_607_4;
-    const P3: f32 = -0.053_842_706_47;
-    const P4: f32 = 0.021_039_672_47;
-    const P5: f32 = -0.006_235_555_583;
+    // Fitted with numpy (weighted lstsq on Chebyshev nodes in x^2); these are
+    // the f32 roundings of the fitted coefficients (P0 rounds to exactly 1).
+    const P0: f32 = 1.0;
+    const P1: f32 = -0.333_333_1;
+    const P2: f32 = 0.133_324_61;
+    const P3: f32 = -0.053_842_705;
+    const P4: f32 = 0.021_039_672;
+    const P5: f32 = -0.006_235_555_7;
     const SMALL: f32 = 0.55;
     // 1.5 * 2^23: adding it rounds to an integer held in the low mantissa bits.
     const MAGIC: f32 = 12_582_912.0;
     const LOG2E: f32 = std::f32::consts::LOG2_E;
     // ln 2 split so that n * LN2_HI is exact for the n used here (Cody-Waite).
-    const LN2_HI: f32 = 0.693_145_751_953_125;
-    const LN2_LO: f32 = 1.428_606_765_330_187e-6;
+    const LN2_HI: f32 = 0.693_145_75;
+    const LN2_LO: f32 = 1.428_606_8e-6;
 
     let a = x.abs();
     let s = a * a;
