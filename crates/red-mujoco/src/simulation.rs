@@ -5,27 +5,44 @@
 use std::path::Path;
 use std::sync::{Arc, Once};
 
-use mujoco_rs::prelude::{MjData, MjModel, MjtObjBase, log_config, set_log_config};
+use mujoco_rs::prelude::{MjData, MjLogMessage, MjModel, MjtLogLevel, MjtObjBase, set_log_handler};
 
 use crate::{Error, Result, assets};
 
-/// Keeps MuJoCo from appending its warnings to a `MUJOCO_LOG.TXT` in the
-/// current folder (Gymnasium's `half_cheetah.xml` warns about a deprecated
-/// attribute every time it is loaded); warnings still go to the console.
-static LOG_TO_CONSOLE_ONLY: Once = Once::new();
+/// MuJoCo's messages go to [`mujoco_message`] instead of MuJoCo's default
+/// handler, which prints them and appends them to a `MUJOCO_LOG.TXT` in the
+/// current folder.
+static LOG_HANDLER: Once = Once::new();
+
+/// The only warning dropped: Gymnasium's `half_cheetah.xml` uses the
+/// deprecated `settotalmass` attribute, and MuJoCo warns on every load.
+const KNOWN_BENIGN_WARNING: &str = "'settotalmass' is deprecated";
+
+/// Prints MuJoCo's warnings and errors to stderr (no log file), except the
+/// known deprecation warning of Gymnasium's HalfCheetah model; information
+/// and debug messages are dropped. MuJoCo ends the process after an error.
+fn mujoco_message(message: &MjLogMessage) {
+    let subject = message.subject();
+    match message.level() {
+        MjtLogLevel::mjLOG_WARNING if subject.contains(KNOWN_BENIGN_WARNING) => {}
+        MjtLogLevel::mjLOG_WARNING => eprintln!("MuJoCo warning: {subject}"),
+        MjtLogLevel::mjLOG_ERROR => eprintln!("MuJoCo error: {subject}"),
+        _ => {}
+    }
+}
 
 fn configure_mujoco_logging() {
-    LOG_TO_CONSOLE_ONLY.call_once(|| {
-        let config = log_config().with_logto_file(false);
-        // SAFETY: `set_log_config` must not race with other MuJoCo use. It
-        // runs once, before the first model of this crate is loaded, so no
-        // simulation of this crate exists yet; every loader of this crate
-        // waits on the `Once`. Code that drives MuJoCo directly on another
-        // thread at the same moment is the only case left, and is documented
-        // on `Simulation::from_path`.
+    LOG_HANDLER.call_once(|| {
+        // SAFETY: the handler must not be installed while another thread
+        // uses MuJoCo. It is installed once, before the first model of this
+        // crate is loaded, so no simulation of this crate exists yet, and
+        // every loader of this crate waits on the `Once`. Code that drives
+        // MuJoCo directly on another thread at the same moment is the only
+        // case left, and is documented on `Simulation::from_path`. The
+        // handler is thread-safe and never logs through MuJoCo.
         #[allow(unsafe_code)]
         unsafe {
-            set_log_config(config);
+            set_log_handler(mujoco_message);
         }
     });
 }
@@ -61,9 +78,12 @@ impl Simulation {
 
     /// Loads the model file at `path`.
     ///
-    /// The first load in a process turns off MuJoCo's log file (its warnings
-    /// still reach the console); that global setting must not be changed
-    /// while another thread uses MuJoCo directly, outside this crate.
+    /// The first load in a process installs a MuJoCo message handler that
+    /// prints warnings and errors to stderr without writing MuJoCo's log
+    /// file, and drops the deprecation warning that Gymnasium's
+    /// `half_cheetah.xml` causes on every load. That global setting must not
+    /// be changed while another thread uses MuJoCo directly, outside this
+    /// crate; a program may install its own handler afterwards.
     ///
     /// # Errors
     /// As [`Simulation::load`].
@@ -343,6 +363,19 @@ mod tests {
         ));
         let missing = Simulation::from_path(Path::new("/nonexistent/model.xml"), 1);
         assert!(matches!(missing, Err(Error::AssetNotFound { .. })));
+    }
+
+    #[test]
+    fn an_unstable_state_is_reset_by_mujoco_with_a_warning() {
+        let mut sim = hopper();
+        sim.set_state(&[0.0, 1.25, 0.0, 0.0, 0.0, 0.0], &[1e11; 6])
+            .unwrap();
+        sim.step(&[0.0; 3]).unwrap();
+        // MuJoCo warns (printed to stderr by our handler) and resets the
+        // data instead of ending the process.
+        let warnings: i32 = sim.data().warning().iter().map(|w| w.number).sum();
+        assert!(warnings > 0);
+        assert!(sim.qvel().iter().all(|v| v.abs() < 1e10));
     }
 
     #[test]
