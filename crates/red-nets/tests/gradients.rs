@@ -388,3 +388,34 @@ proptest! {
         check_jvp(&net, &x, &mut rng);
     }
 }
+
+#[test]
+fn workspace_and_tape_buffers_are_reused() {
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let net = Mlp::new(&MlpConfig::new(14, &[128, 128], 128), &mut rng).unwrap();
+    let x = random_matrix(&mut rng, 32, 14);
+    let y = random_matrix(&mut rng, 32, 14);
+    let mut ws = red_nets::Workspace::new();
+    let p1 = net.forward(x.view(), &mut ws).as_ptr();
+    let p2 = net.forward(y.view(), &mut ws).as_ptr();
+    assert_eq!(
+        p1, p2,
+        "a second forward pass at the same batch size reallocated"
+    );
+    assert_eq!(
+        net.forward(y.view(), &mut ws).to_owned(),
+        net.predict(y.view())
+    );
+    let mut tape = Tape::new();
+    let t1 = net.forward_tape(x.view(), &mut tape).as_ptr();
+    let t2 = net.forward_tape(y.view(), &mut tape).as_ptr();
+    assert_eq!(
+        t1, t2,
+        "a second taped pass at the same batch size reallocated"
+    );
+    assert_eq!(tape.input(), y.view());
+    assert_eq!(tape.batch(), 32);
+    // An empty batch is allowed and gives an empty output.
+    let empty = Array2::<f32>::zeros((0, 14));
+    assert_eq!(net.forward(empty.view(), &mut ws).dim(), (0, 128));
+}
