@@ -1,9 +1,48 @@
 //! Expert demonstrations: the dataset type and the project's JSON format.
 //!
-//! Status: the data types and plain reading/writing are here; full
-//! validation with located errors and the importers are being completed.
+//! A demo file is one JSON object: a header (`format` = `"red-demos"`,
+//! `version`, `env_id`, `obs_dim`, `act_dim`, optional `control_hz`) and
+//! `trajectories`, each with `observations` and `actions` (one row per
+//! step, `observations[t]` being the state `actions[t]` was taken in),
+//! optional true `rewards`, and `end` (`"terminated"` or `"truncated"`):
+//!
+//! ```json
+//! {"format": "red-demos", "version": 1, "env_id": "drive", "obs_dim": 2,
+//!  "act_dim": 1, "control_hz": 20.0,
+//!  "trajectories": [{"observations": [[0.0, 1.0], [0.5, 1.0]],
+//!                    "actions": [[0.1], [-0.2]], "rewards": [1.0, 0.5],
+//!                    "end": "truncated"}]}
+//! ```
+//!
+//! Reading validates everything ([`Demos::validate`]) and reports the
+//! file, trajectory and step of the first problem; JSON syntax errors, and
+//! `NaN`, `Infinity` or out-of-range numbers such as `1e400` (which JSON
+//! cannot hold, and demonstrations must not), are reported with their line
+//! and column too. Importers for the formats of the original RED release
+//! and of OpenAI baselines are in [`crate::import`].
+//!
+//! ```
+//! use red_core::demo::{Demos, EpisodeEnd, Trajectory};
+//! let mut demos = Demos::new("walk", 1, 1, Some(10.0));
+//! demos.trajectories.push(Trajectory {
+//!     observations: vec![vec![0.0], vec![0.5]],
+//!     actions: vec![vec![0.5], vec![0.5]],
+//!     rewards: None,
+//!     end: EpisodeEnd::Truncated,
+//! });
+//! demos.validate()?;
+//! let text = serde_json::to_string(&demos).unwrap();
+//! assert_eq!(Demos::from_json_str(&text)?, demos);
+//!
+//! let broken = text.replace("[0.5],[0.5]", "[0.5],[0.5,1.0]");
+//! let err = Demos::from_json_str(&broken).unwrap_err().to_string();
+//! assert!(err.contains("trajectory 0, step 1"), "{err}");
+//! # Ok::<(), red_core::Error>(())
+//! ```
 
-use std::path::Path;
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
 
 use ndarray::Array2;
 use serde::{Deserialize, Serialize};
@@ -39,6 +78,23 @@ pub struct Trajectory {
     pub rewards: Option<Vec<f64>>,
     /// How the episode ended.
     pub end: EpisodeEnd,
+}
+
+impl Trajectory {
+    /// Number of steps (state-action pairs).
+    pub fn len(&self) -> usize {
+        self.actions.len()
+    }
+
+    /// Whether it has no steps (never the case in a valid set).
+    pub fn is_empty(&self) -> bool {
+        self.actions.is_empty()
+    }
+
+    /// The sum of the true rewards, if known.
+    pub fn true_return(&self) -> Option<f64> {
+        self.rewards.as_ref().map(|r| r.iter().sum())
+    }
 }
 
 /// A set of demonstrations for one environment.
@@ -86,7 +142,11 @@ impl Demos {
         self.trajectories.iter().map(|t| t.actions.len()).sum()
     }
 
-    /// All state-action pairs stacked: `((N, obs_dim), (N, act_dim))`.
+    /// All state-action pairs stacked, trajectory after trajectory:
+    /// `((N, obs_dim), (N, act_dim))` with `N = num_pairs()`.
+    ///
+    /// Rows shorter than the dimensions are padded with zeros and longer
+    /// ones cut; a set that passed [`Demos::validate`] has neither.
     pub fn pairs(&self) -> (Array2<f64>, Array2<f64>) {
         let n = self.num_pairs();
         let mut s = Array2::zeros((n, self.obs_dim));
@@ -94,10 +154,10 @@ impl Demos {
         let mut row = 0;
         for t in &self.trajectories {
             for (o, u) in t.observations.iter().zip(&t.actions) {
-                for (j, v) in o.iter().enumerate() {
+                for (j, v) in o.iter().take(self.obs_dim).enumerate() {
                     s[[row, j]] = *v;
                 }
-                for (j, v) in u.iter().enumerate() {
+                for (j, v) in u.iter().take(self.act_dim).enumerate() {
                     a[[row, j]] = *v;
                 }
                 row += 1;
@@ -106,37 +166,376 @@ impl Demos {
         (s, a)
     }
 
-    /// Writes the set as JSON to `path`.
+    /// The length of each trajectory.
+    pub fn lengths(&self) -> Vec<usize> {
+        self.trajectories.iter().map(Trajectory::len).collect()
+    }
+
+    /// The true return of each trajectory, if every trajectory has rewards.
+    pub fn returns(&self) -> Option<Vec<f64>> {
+        self.trajectories
+            .iter()
+            .map(Trajectory::true_return)
+            .collect()
+    }
+
+    /// A few lines describing the set: environment, counts, dimensions,
+    /// lengths, how episodes ended and the true returns when known.
+    pub fn summary(&self) -> String {
+        let mut s = String::new();
+        let lengths = self.lengths();
+        let _ = write!(
+            s,
+            "{} v{} demos for `{}`: {} trajectories, {} state-action pairs, obs dim {}, act dim {}",
+            self.format,
+            self.version,
+            self.env_id,
+            self.trajectories.len(),
+            self.num_pairs(),
+            self.obs_dim,
+            self.act_dim
+        );
+        if let Some(hz) = self.control_hz {
+            let _ = write!(s, ", {hz} Hz");
+        }
+        if let (Some(min), Some(max)) = (lengths.iter().min(), lengths.iter().max()) {
+            let mean = lengths.iter().sum::<usize>() as f64 / lengths.len() as f64;
+            let terminated = self
+                .trajectories
+                .iter()
+                .filter(|t| t.end == EpisodeEnd::Terminated)
+                .count();
+            let _ = write!(
+                s,
+                "\nlengths: min {min}, mean {mean:.1}, max {max}; {terminated} terminated, {} truncated",
+                self.trajectories.len() - terminated
+            );
+        }
+        match self.returns() {
+            Some(r) if !r.is_empty() => {
+                let n = r.len() as f64;
+                let mean = r.iter().sum::<f64>() / n;
+                let std = (r.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+                let min = r.iter().copied().fold(f64::INFINITY, f64::min);
+                let max = r.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                let _ = write!(
+                    s,
+                    "\ntrue return: mean {mean:.3} +- {std:.3} (min {min:.3}, max {max:.3})"
+                );
+            }
+            _ => s.push_str("\ntrue return: unknown (no rewards recorded)"),
+        }
+        s
+    }
+
+    /// Checks everything a learner relies on: the header (format name,
+    /// version, a non-empty `env_id`, positive dimensions, a positive finite
+    /// `control_hz`), at least one trajectory, and in each trajectory at
+    /// least one step, as many observations (and rewards, if any) as
+    /// actions, rows of `obs_dim` and `act_dim` numbers, all finite.
     ///
     /// # Errors
-    /// [`Error::Io`] if the file cannot be written.
+    /// [`Error::Demo`] for the first problem, with its trajectory and step
+    /// (`path` is `None`; [`Demos::read`] fills it in).
+    pub fn validate(&self) -> Result<()> {
+        let err = |trajectory, step, reason: String| Error::Demo {
+            path: None,
+            trajectory,
+            step,
+            reason,
+        };
+        check_header(&self.format, self.version).map_err(|r| err(None, None, r))?;
+        if self.env_id.trim().is_empty() {
+            return Err(err(None, None, "env_id is empty".into()));
+        }
+        if self.obs_dim == 0 || self.act_dim == 0 {
+            return Err(err(
+                None,
+                None,
+                format!(
+                    "obs_dim and act_dim must be positive, got {} and {}",
+                    self.obs_dim, self.act_dim
+                ),
+            ));
+        }
+        if let Some(hz) = self.control_hz {
+            if !(hz.is_finite() && hz > 0.0) {
+                return Err(err(
+                    None,
+                    None,
+                    format!("control_hz is {hz}, it must be a positive finite number"),
+                ));
+            }
+        }
+        if self.trajectories.is_empty() {
+            return Err(err(None, None, "no trajectories".into()));
+        }
+        for (i, t) in self.trajectories.iter().enumerate() {
+            let n = t.actions.len();
+            if n == 0 && t.observations.is_empty() {
+                return Err(err(Some(i), None, "empty trajectory (no steps)".into()));
+            }
+            if t.observations.len() != n {
+                return Err(err(
+                    Some(i),
+                    None,
+                    format!(
+                        "{} observations but {n} actions: they must have the same length \
+                         (observations[t] is the state actions[t] was taken in)",
+                        t.observations.len()
+                    ),
+                ));
+            }
+            if let Some(r) = &t.rewards {
+                if r.len() != n {
+                    return Err(err(
+                        Some(i),
+                        None,
+                        format!(
+                            "{} rewards but {n} actions: need one reward per step",
+                            r.len()
+                        ),
+                    ));
+                }
+            }
+            for k in 0..n {
+                check_row("observation", &t.observations[k], self.obs_dim, "obs_dim")
+                    .map_err(|r| err(Some(i), Some(k), r))?;
+                check_row("action", &t.actions[k], self.act_dim, "act_dim")
+                    .map_err(|r| err(Some(i), Some(k), r))?;
+                if let Some(r) = &t.rewards {
+                    if !r[k].is_finite() {
+                        return Err(err(
+                            Some(i),
+                            Some(k),
+                            format!("reward is {}, not a finite number", r[k]),
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Parses and validates a demo file's text.
+    ///
+    /// # Errors
+    /// [`Error::Demo`] (without `path`) for invalid JSON (with line and
+    /// column: a truncated file, `NaN`, `Infinity`, a number too large for
+    /// `f64`), a wrong format name or unknown version, a missing or
+    /// ill-typed field, or anything [`Demos::validate`] rejects; the
+    /// trajectory and step are given when the problem has them.
+    pub fn from_json_str(text: &str) -> Result<Self> {
+        if text.trim().is_empty() {
+            return Err(demo_err(
+                None,
+                None,
+                "the file is empty, expected a JSON demo object".into(),
+            ));
+        }
+        // The header first, so that a file of another format or version is
+        // named as such rather than failing on its first unfamiliar field.
+        let probe: Probe = serde_json::from_str(text).map_err(|e| json_error(text, &e))?;
+        probe.check()?;
+        let demos: Demos = serde_json::from_str(text).map_err(|e| json_error(text, &e))?;
+        demos.validate()?;
+        Ok(demos)
+    }
+
+    /// Reads and validates a demo file.
+    ///
+    /// # Errors
+    /// [`Error::Io`] if it cannot be read, [`Error::Demo`] naming the file
+    /// (and trajectory, step, line and column where they apply) if it is not
+    /// valid UTF-8 or [`Demos::from_json_str`] rejects it.
+    pub fn read(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let text = std::str::from_utf8(&bytes).map_err(|e| Error::Demo {
+            path: Some(path.to_path_buf()),
+            trajectory: None,
+            step: None,
+            reason: format!(
+                "not UTF-8 text (byte {}): not a JSON demo file",
+                e.valid_up_to()
+            ),
+        })?;
+        Self::from_json_str(text).map_err(|e| e.with_path(path))
+    }
+
+    /// Validates the set, then writes it as JSON to `path` atomically: the
+    /// text goes to a temporary file beside `path`, which is then renamed
+    /// over it, so a reader never sees half a file.
+    ///
+    /// # Errors
+    /// [`Error::Demo`] if [`Demos::validate`] rejects the set (nothing is
+    /// written), [`Error::Io`] if the file cannot be written.
     pub fn write(&self, path: &Path) -> Result<()> {
+        self.validate().map_err(|e| e.with_path(path))?;
         let text = serde_json::to_string(self).map_err(|e| Error::Demo {
             path: Some(path.to_path_buf()),
             trajectory: None,
             step: None,
             reason: e.to_string(),
         })?;
-        std::fs::write(path, text).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })
+        write_atomic(path, text.as_bytes())
     }
+}
 
-    /// Reads a demo file.
-    ///
-    /// # Errors
-    /// [`Error::Io`] if it cannot be read, [`Error::Demo`] if it is malformed.
-    pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+/// Writes `bytes` to a temporary file in `path`'s directory, syncs it and
+/// renames it over `path`.
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let io = |p: &Path| {
+        let p = p.to_path_buf();
+        move |source| Error::Io { path: p, source }
+    };
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::Io {
             path: path.to_path_buf(),
-            source,
-        })?;
-        serde_json::from_str(&text).map_err(|e| Error::Demo {
-            path: Some(path.to_path_buf()),
-            trajectory: None,
-            step: None,
-            reason: e.to_string(),
+            source: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file path"),
+        })?
+        .to_string_lossy();
+    let tmp: PathBuf = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let result = std::fs::File::create(&tmp)
+        .and_then(|mut f| {
+            f.write_all(bytes)?;
+            f.sync_all()
         })
+        .map_err(io(&tmp))
+        .and_then(|()| std::fs::rename(&tmp, path).map_err(io(path)));
+    if result.is_err() {
+        // Best effort: the temporary file is useless after a failure.
+        let _ = std::fs::remove_file(&tmp);
     }
+    result
+}
+
+fn demo_err(trajectory: Option<usize>, step: Option<usize>, reason: String) -> Error {
+    Error::Demo {
+        path: None,
+        trajectory,
+        step,
+        reason,
+    }
+}
+
+fn check_header(format: &str, version: u32) -> std::result::Result<(), String> {
+    if format != FORMAT_NAME {
+        return Err(format!(
+            "format is \"{format}\", expected \"{FORMAT_NAME}\" (not a red demo file)"
+        ));
+    }
+    if version != FORMAT_VERSION {
+        return Err(format!(
+            "unknown version {version}: this build reads version {FORMAT_VERSION}"
+        ));
+    }
+    Ok(())
+}
+
+fn check_row(
+    what: &str,
+    row: &[f64],
+    dim: usize,
+    dim_name: &str,
+) -> std::result::Result<(), String> {
+    if row.len() != dim {
+        return Err(format!(
+            "{what} has {} numbers, {dim_name} is {dim}",
+            row.len()
+        ));
+    }
+    if let Some((j, v)) = row.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(format!("{what}[{j}] is {v}, not a finite number"));
+    }
+    Ok(())
+}
+
+/// The header fields alone; every other field is skipped.
+#[derive(Deserialize)]
+struct Probe {
+    format: Option<serde_json::Value>,
+    version: Option<serde_json::Value>,
+}
+
+impl Probe {
+    fn check(&self) -> Result<()> {
+        let format = match &self.format {
+            None => {
+                return Err(demo_err(
+                    None,
+                    None,
+                    format!("no `format` field: not a {FORMAT_NAME} file"),
+                ));
+            }
+            Some(serde_json::Value::String(s)) => s.as_str(),
+            Some(other) => {
+                return Err(demo_err(
+                    None,
+                    None,
+                    format!("`format` is {other}, expected \"{FORMAT_NAME}\""),
+                ));
+            }
+        };
+        let version = match &self.version {
+            None => return Err(demo_err(None, None, "no `version` field".into())),
+            Some(v) => match v.as_u64().and_then(|v| u32::try_from(v).ok()) {
+                Some(v) => v,
+                None => {
+                    return Err(demo_err(
+                        None,
+                        None,
+                        format!("unknown version {v}: this build reads version {FORMAT_VERSION}"),
+                    ));
+                }
+            },
+        };
+        check_header(format, version).map_err(|r| demo_err(None, None, r))
+    }
+}
+
+/// Turns a serde_json error into an [`Error::Demo`] with line, column, the
+/// JSON path and, inside a trajectory, its index and step.
+fn json_error(text: &str, e: &serde_json::Error) -> Error {
+    use serde_json::error::Category;
+    // serde_json reports `NaN` as "expected value" and `1e400` as "number
+    // out of range"; a scan names the token instead, if it is what failed.
+    if matches!(e.classify(), Category::Syntax | Category::Eof) {
+        if let Some(bad) = crate::json_loc::first_non_finite(text) {
+            let err_offset = crate::json_loc::offset_of(text, e.line(), e.column());
+            if bad.offset <= err_offset {
+                let (trajectory, step) = bad.path.trajectory_step();
+                return demo_err(
+                    trajectory,
+                    step,
+                    format!(
+                        "line {} column {} ({}): {}",
+                        bad.line,
+                        bad.column,
+                        bad.path,
+                        bad.problem()
+                    ),
+                );
+            }
+        }
+    }
+    let offset = crate::json_loc::offset_of(text, e.line(), e.column());
+    let path = crate::json_loc::path_at(text, offset);
+    let (trajectory, step) = path.trajectory_step();
+    let message = e.to_string();
+    let reason = match e.classify() {
+        Category::Eof => format!(
+            "the JSON ends early (truncated file?): {message}{}",
+            path.describe_in()
+        ),
+        Category::Syntax => format!("invalid JSON: {message}{}", path.describe_in()),
+        Category::Data if path.is_root() && message.contains("expected struct") => {
+            format!("expected a JSON object with the {FORMAT_NAME} header: {message}")
+        }
+        Category::Data | Category::Io => format!("{message}{}", path.describe_in()),
+    };
+    demo_err(trajectory, step, reason)
 }

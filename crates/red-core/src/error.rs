@@ -76,6 +76,27 @@ pub enum Error {
     },
 }
 
+impl Error {
+    /// The same error, naming `path` as its file if it is an
+    /// [`Error::Demo`] without one; other errors are returned unchanged.
+    pub fn with_path(self, path: &std::path::Path) -> Self {
+        match self {
+            Error::Demo {
+                path: None,
+                trajectory,
+                step,
+                reason,
+            } => Error::Demo {
+                path: Some(path.to_path_buf()),
+                trajectory,
+                step,
+                reason,
+            },
+            other => other,
+        }
+    }
+}
+
 fn location_prefix(
     path: Option<&std::path::Path>,
     trajectory: Option<usize>,

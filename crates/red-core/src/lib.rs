@@ -3,7 +3,7 @@
 //! [`RewardModel`] trait, seeding, and expert demonstrations.
 //!
 //! ```
-//! use red_core::{Env, TimeLimit};
+//! use red_core::{check_env, Env, TimeLimit};
 //! # use red_core::{Info, Result, Space, Step, BoxSpace};
 //! # struct Walk { pos: f64, obs: Space, act: Space }
 //! # impl Env for Walk {
@@ -13,6 +13,7 @@
 //! #         self.pos = 0.0; Ok((vec![0.0], Info::new()))
 //! #     }
 //! #     fn step(&mut self, a: &[f64]) -> Result<Step> {
+//! #         self.act.check("action", a)?;
 //! #         self.pos += a[0];
 //! #         Ok(Step { observation: vec![self.pos], reward: a[0], terminated: false,
 //! #                   truncated: false, info: Info::new() })
@@ -29,17 +30,27 @@
 //!     if step.terminated || step.truncated { break; }
 //! }
 //! assert_eq!(steps, 3);
+//!
+//! // Every environment of the project passes the checker.
+//! let report = check_env(&mut env, 0, 50)?;
+//! assert_eq!(report.truncated, 50 / 3);
 //! # Ok::<(), red_core::Error>(())
 //! ```
 
+#![warn(missing_docs)]
+
+pub mod check;
 pub mod demo;
 pub mod env;
 pub mod error;
+pub mod import;
+mod json_loc;
 pub mod reward;
 pub mod seeding;
 pub mod space;
 pub mod wrappers;
 
+pub use check::{CheckReport, check_env};
 pub use demo::{Demos, EpisodeEnd, Trajectory};
 pub use env::{Env, Info, Step, TRUE_REWARD};
 pub use error::{Error, Result};

@@ -75,6 +75,25 @@ impl Space {
         }
     }
 
+    /// Checks that the space itself is well formed: a box has as many lower
+    /// as upper bounds, none NaN, `low <= high`; a discrete space has at
+    /// least one element. [`Space::sample`] needs a well-formed space.
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] for bound vectors of different lengths,
+    /// [`Error::InvalidConfig`] for a NaN bound, `low > high`, or
+    /// `Discrete(0)`.
+    pub fn validate(&self) -> Result<()> {
+        match self {
+            Space::Box(b) => BoxSpace::new(b.low.clone(), b.high.clone()).map(|_| ()),
+            Space::Discrete(0) => Err(Error::InvalidConfig {
+                field: "discrete space".into(),
+                reason: "needs at least one element, got Discrete(0)".into(),
+            }),
+            Space::Discrete(_) => Ok(()),
+        }
+    }
+
     /// Whether `x` is an element of the space (finite, right length, in
     /// bounds; for discrete, an integer in `0..n`).
     pub fn contains(&self, x: &[f64]) -> bool {
@@ -119,20 +138,27 @@ impl Space {
         Ok(())
     }
 
-    /// A uniformly random element. A box dimension with an infinite bound is
-    /// drawn uniformly from `[-1, 1]` instead.
+    /// A uniformly random element. A box dimension unbounded on both sides
+    /// is drawn uniformly from `[-1, 1]` instead, one bounded on one side
+    /// only from the two units next to its finite bound.
+    ///
+    /// # Panics
+    /// On a malformed space (`Discrete(0)`, `low > high`, a NaN bound);
+    /// [`Space::validate`] tells those apart beforehand.
     pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> Vec<f64> {
         match self {
             Space::Box(b) => b
                 .low
                 .iter()
                 .zip(&b.high)
-                .map(|(&l, &h)| {
-                    if l.is_finite() && h.is_finite() {
-                        if l == h { l } else { rng.random_range(l..=h) }
-                    } else {
-                        rng.random_range(-1.0..=1.0)
-                    }
+                .map(|(&l, &h)| match (l.is_finite(), h.is_finite()) {
+                    (true, true) if l == h => l,
+                    (true, true) if (h - l).is_finite() => rng.random_range(l..=h),
+                    // So wide that the width overflows: centre on zero.
+                    (true, true) => rng.random_range(-1.0..=1.0),
+                    (true, false) => l + rng.random_range(0.0..=2.0),
+                    (false, true) => h - rng.random_range(0.0..=2.0),
+                    (false, false) => rng.random_range(-1.0..=1.0),
                 })
                 .collect(),
             Space::Discrete(n) => vec![rng.random_range(0..*n) as f64],

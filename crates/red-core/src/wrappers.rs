@@ -9,11 +9,17 @@ use crate::{Env, Error, Info, Result, RewardModel, Space, Step};
 /// only place in the project that sets `truncated`; when the inner
 /// environment terminates on the same step, `terminated` wins and
 /// `truncated` stays false.
+///
+/// After an episode ended (either flag), `step` fails with
+/// [`Error::NeedsReset`] until the next `reset`, whatever the inner
+/// environment would do; so does a `step` before the first `reset`.
 #[derive(Debug, Clone)]
 pub struct TimeLimit<E> {
     inner: E,
     max_steps: usize,
     elapsed: usize,
+    /// No episode is running: before the first reset or after an end.
+    needs_reset: bool,
 }
 
 impl<E: Env> TimeLimit<E> {
@@ -32,6 +38,7 @@ impl<E: Env> TimeLimit<E> {
             inner,
             max_steps,
             elapsed: 0,
+            needs_reset: true,
         })
     }
 
@@ -65,13 +72,27 @@ impl<E: Env> Env for TimeLimit<E> {
     }
     fn reset(&mut self, seed: Option<u64>) -> Result<(Vec<f64>, Info)> {
         self.elapsed = 0;
-        self.inner.reset(seed)
+        let out = self.inner.reset(seed)?;
+        self.needs_reset = false;
+        Ok(out)
     }
     fn step(&mut self, action: &[f64]) -> Result<Step> {
+        if self.needs_reset {
+            return Err(Error::NeedsReset {
+                reason: if self.elapsed == 0 {
+                    "step called before reset".into()
+                } else {
+                    format!("the episode ended after {} steps", self.elapsed)
+                },
+            });
+        }
         let mut step = self.inner.step(action)?;
         self.elapsed += 1;
         if !step.terminated && self.elapsed >= self.max_steps {
             step.truncated = true;
+        }
+        if step.terminated || step.truncated {
+            self.needs_reset = true;
         }
         Ok(step)
     }
@@ -130,16 +151,25 @@ impl<E: Env, R: RewardModel> Env for RewardWrapper<E, R> {
         Ok((obs, info))
     }
     fn step(&mut self, action: &[f64]) -> Result<Step> {
-        let state = self.last_obs.take().ok_or_else(|| Error::NeedsReset {
-            reason: "step called before reset".into(),
-        })?;
+        if self.last_obs.is_none() {
+            return Err(Error::NeedsReset {
+                reason: "step called before reset".into(),
+            });
+        }
         let mut step = self.inner.step(action)?;
-        let s =
-            ArrayView2::from_shape((1, state.len()), &state).map_err(|e| Error::ShapeMismatch {
+        // The environment moved on: the next action is taken in the new
+        // observation even if the model fails below.
+        let state = self
+            .last_obs
+            .replace(step.observation.clone())
+            .unwrap_or_default();
+        let s = ArrayView2::from_shape((1, state.len()), state.as_slice()).map_err(|e| {
+            Error::ShapeMismatch {
                 what: "state".into(),
                 expected: "a row".into(),
                 got: e.to_string(),
-            })?;
+            }
+        })?;
         let a = ArrayView2::from_shape((1, action.len()), action).map_err(|e| {
             Error::ShapeMismatch {
                 what: "action".into(),
@@ -148,9 +178,13 @@ impl<E: Env, R: RewardModel> Env for RewardWrapper<E, R> {
             }
         })?;
         let r = self.model.rewards(s, a)?;
+        let reward = r.first().copied().ok_or_else(|| Error::ShapeMismatch {
+            what: "reward model output".into(),
+            expected: "1 reward".into(),
+            got: "0".into(),
+        })?;
         step.info.set(TRUE_REWARD, step.reward);
-        step.reward = r[0];
-        self.last_obs = Some(step.observation.clone());
+        step.reward = reward;
         Ok(step)
     }
 }
