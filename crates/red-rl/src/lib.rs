@@ -3,6 +3,12 @@
 //! GMMIL. Learners are generic over [`red_core::Env`] and take any
 //! [`red_core::RewardModel`].
 
+pub mod bc;
 pub mod error;
+pub mod gae;
+pub mod normalize;
+pub mod policy;
+pub mod rollout;
+pub mod trpo;
 
 pub use error::{Error, Result};

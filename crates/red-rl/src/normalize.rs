@@ -1,0 +1,296 @@
+//! Running mean / standard-deviation normalisation of observations, clipped,
+//! with the option to freeze statistics taken from expert data.
+//!
+//! `normalize(x) = clip((x - mean) / max(std, min_std), -clip, clip)`.
+//!
+//! ```
+//! use ndarray::array;
+//! use red_rl::normalize::ObsNormalizer;
+//! let expert = array![[0.0, 10.0], [2.0, 10.0]];
+//! let norm = ObsNormalizer::from_data(expert.view(), 5.0, 0.1)?;
+//! assert!(norm.is_frozen());
+//! let mut out = [0.0f32; 2];
+//! norm.normalize_into(&[2.0, 100.0], &mut out)?;
+//! assert_eq!(out, [1.0, 5.0]); // std 1 on the first dim; the second is clipped
+//! # Ok::<(), red_rl::Error>(())
+//! ```
+
+use ndarray::{Array2, ArrayView2};
+use serde::{Deserialize, Serialize};
+
+use crate::{Error, Result};
+
+/// Observation statistics (count, mean, variance), updated from batches with
+/// the parallel form of Welford's algorithm, or frozen.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObsNormalizer {
+    count: f64,
+    mean: Vec<f64>,
+    /// Population variance (divided by `count`).
+    var: Vec<f64>,
+    clip: f64,
+    min_std: f64,
+    frozen: bool,
+}
+
+/// The release's clip of normalised observations, `+-5`.
+pub const DEFAULT_CLIP: f64 = 5.0;
+
+/// Floor on the standard deviation, `0.1`: OpenAI baselines' running
+/// mean/std (which the release uses) floors the variance at `1e-2`. It keeps
+/// a dimension that is constant in the data from being blown up.
+pub const DEFAULT_MIN_STD: f64 = 0.1;
+
+impl ObsNormalizer {
+    /// Statistics of no data yet (mean 0, variance 0, so the floor `min_std`
+    /// applies), updated by [`ObsNormalizer::update`].
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] if `dim` is 0, `clip` is not positive and
+    /// finite (JSON cannot hold infinity; `f64::MAX` means no clip), or
+    /// `min_std` is not positive and finite.
+    pub fn new(dim: usize, clip: f64, min_std: f64) -> Result<Self> {
+        if dim == 0 {
+            return Err(Error::InvalidConfig {
+                field: "obs_dim".into(),
+                reason: "must be at least 1".into(),
+            });
+        }
+        if !clip.is_finite() || clip <= 0.0 {
+            return Err(Error::InvalidConfig {
+                field: "clip".into(),
+                reason: format!("must be positive and finite (use f64::MAX for none), got {clip}"),
+            });
+        }
+        if !min_std.is_finite() || min_std <= 0.0 {
+            return Err(Error::InvalidConfig {
+                field: "min_std".into(),
+                reason: format!("must be positive and finite, got {min_std}"),
+            });
+        }
+        Ok(Self {
+            count: 0.0,
+            mean: vec![0.0; dim],
+            var: vec![0.0; dim],
+            clip,
+            min_std,
+            frozen: false,
+        })
+    }
+
+    /// Statistics of `data` (`(n, dim)`, for example the expert's
+    /// observations), frozen: later [`ObsNormalizer::update`] calls do
+    /// nothing. This is what the release does for RED and AE.
+    ///
+    /// # Errors
+    /// As [`ObsNormalizer::new`], and [`Error::ShapeMismatch`] for no rows,
+    /// [`Error::NonFinite`] for a non-finite entry.
+    pub fn from_data(data: ArrayView2<'_, f64>, clip: f64, min_std: f64) -> Result<Self> {
+        if data.nrows() == 0 {
+            return Err(Error::ShapeMismatch {
+                what: "normaliser data".into(),
+                expected: "at least one row".into(),
+                got: "0 rows".into(),
+            });
+        }
+        let mut n = Self::new(data.ncols(), clip, min_std)?;
+        n.update(data)?;
+        n.frozen = true;
+        Ok(n)
+    }
+
+    /// Adds a batch `(n, dim)` to the statistics, unless frozen.
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] for the wrong number of columns,
+    /// [`Error::NonFinite`] for a non-finite entry (the statistics are then
+    /// left unchanged).
+    pub fn update(&mut self, batch: ArrayView2<'_, f64>) -> Result<()> {
+        if self.frozen || batch.nrows() == 0 {
+            return Ok(());
+        }
+        if batch.ncols() != self.dim() {
+            return Err(Error::ShapeMismatch {
+                what: "normaliser batch".into(),
+                expected: format!("{} columns", self.dim()),
+                got: format!("{}", batch.ncols()),
+            });
+        }
+        if let Some(i) = batch.iter().position(|v| !v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: format!("observation entry {i} of a normaliser batch"),
+                step: 0,
+            });
+        }
+        let nb = batch.nrows() as f64;
+        let total = self.count + nb;
+        for (j, col) in batch.columns().into_iter().enumerate() {
+            let bmean = col.sum() / nb;
+            let bvar = col.iter().map(|v| (v - bmean) * (v - bmean)).sum::<f64>() / nb;
+            let delta = bmean - self.mean[j];
+            // Chan et al.'s combination of two sets' means and sums of squares.
+            let m2 = self.var[j] * self.count + bvar * nb + delta * delta * self.count * nb / total;
+            self.mean[j] += delta * nb / total;
+            self.var[j] = m2 / total;
+        }
+        self.count = total;
+        Ok(())
+    }
+
+    /// Normalises one observation into `out` (`f32`, the networks' type).
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] if `x` or `out` is not of length `dim`.
+    pub fn normalize_into(&self, x: &[f64], out: &mut [f32]) -> Result<()> {
+        if x.len() != self.dim() || out.len() != self.dim() {
+            return Err(Error::ShapeMismatch {
+                what: "observation to normalise".into(),
+                expected: format!("{} entries", self.dim()),
+                got: format!("{} in, {} out", x.len(), out.len()),
+            });
+        }
+        for j in 0..x.len() {
+            out[j] = self.normalize_value(j, x[j]) as f32;
+        }
+        Ok(())
+    }
+
+    /// Normalises a batch `(n, dim)` into a new `(n, dim)` `f32` array.
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] for the wrong number of columns.
+    pub fn normalize_batch(&self, x: ArrayView2<'_, f64>) -> Result<Array2<f32>> {
+        if x.ncols() != self.dim() {
+            return Err(Error::ShapeMismatch {
+                what: "observations to normalise".into(),
+                expected: format!("{} columns", self.dim()),
+                got: format!("{}", x.ncols()),
+            });
+        }
+        let mut out = Array2::zeros(x.raw_dim());
+        for (mut o, row) in out.rows_mut().into_iter().zip(x.rows()) {
+            for j in 0..row.len() {
+                o[j] = self.normalize_value(j, row[j]) as f32;
+            }
+        }
+        Ok(out)
+    }
+
+    #[inline]
+    fn normalize_value(&self, j: usize, v: f64) -> f64 {
+        ((v - self.mean[j]) / self.std(j)).clamp(-self.clip, self.clip)
+    }
+
+    #[inline]
+    fn std(&self, j: usize) -> f64 {
+        self.var[j].sqrt().max(self.min_std)
+    }
+
+    /// Stops later updates.
+    pub fn freeze(&mut self) {
+        self.frozen = true;
+    }
+
+    /// Whether updates are ignored.
+    pub fn is_frozen(&self) -> bool {
+        self.frozen
+    }
+
+    /// Length of an observation.
+    pub fn dim(&self) -> usize {
+        self.mean.len()
+    }
+
+    /// Number of observations the statistics were computed from.
+    pub fn count(&self) -> f64 {
+        self.count
+    }
+
+    /// Per-dimension means.
+    pub fn mean(&self) -> &[f64] {
+        &self.mean
+    }
+
+    /// Per-dimension population variances (before the floor).
+    pub fn var(&self) -> &[f64] {
+        &self.var
+    }
+
+    /// Per-dimension standard deviations used to divide (after the floor).
+    pub fn stds(&self) -> Vec<f64> {
+        (0..self.dim()).map(|j| self.std(j)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ndarray::{Axis, array, s};
+
+    #[test]
+    fn batched_updates_match_direct_statistics() {
+        let data = array![
+            [1.0, -3.0],
+            [2.0, 0.5],
+            [4.0, 2.0],
+            [-1.0, 7.0],
+            [0.5, 0.0],
+            [3.0, 1.0],
+            [10.0, -2.0]
+        ];
+        let mut n = ObsNormalizer::new(2, 5.0, 1e-6).unwrap();
+        n.update(data.slice(s![0..3, ..])).unwrap();
+        n.update(data.slice(s![3..4, ..])).unwrap();
+        n.update(data.slice(s![4.., ..])).unwrap();
+        let mean = data.mean_axis(Axis(0)).unwrap();
+        let var = data.var_axis(Axis(0), 0.0);
+        assert_eq!(n.count(), 7.0);
+        for j in 0..2 {
+            assert!((n.mean()[j] - mean[j]).abs() < 1e-12);
+            assert!((n.var()[j] - var[j]).abs() < 1e-12);
+        }
+        let mut out = [0.0f32; 2];
+        n.normalize_into(&[4.0, 1.0], &mut out).unwrap();
+        for j in 0..2 {
+            let x = [4.0, 1.0][j];
+            let want = ((x - mean[j]) / var[j].sqrt()).clamp(-5.0, 5.0) as f32;
+            assert!((out[j] - want).abs() < 1e-6);
+        }
+        let b = n.normalize_batch(data.view()).unwrap();
+        assert!(b.iter().all(|v| v.abs() <= 5.0));
+    }
+
+    #[test]
+    fn frozen_ignores_updates_and_floor_applies() {
+        let expert = array![[1.0, 3.0], [1.0, 5.0]];
+        let mut n = ObsNormalizer::from_data(expert.view(), 5.0, 0.1).unwrap();
+        let before = n.clone();
+        n.update(array![[100.0, 100.0]].view()).unwrap();
+        assert_eq!(n, before);
+        // The first dimension is constant: std floored at 0.1.
+        assert_eq!(n.stds(), vec![0.1, 1.0]);
+        let mut out = [0.0f32; 2];
+        n.normalize_into(&[1.2, 4.0], &mut out).unwrap();
+        assert!((out[0] - 2.0).abs() < 1e-5 && out[1].abs() < 1e-6);
+    }
+
+    #[test]
+    fn serde_round_trip_and_errors() {
+        let mut n = ObsNormalizer::new(3, DEFAULT_CLIP, DEFAULT_MIN_STD).unwrap();
+        n.update(array![[1.0, 2.0, 3.0], [0.0, 1.0, 5.0]].view())
+            .unwrap();
+        let back: ObsNormalizer =
+            serde_json::from_str(&serde_json::to_string(&n).unwrap()).unwrap();
+        assert_eq!(back, n);
+        assert!(n.update(array![[1.0, 2.0]].view()).is_err());
+        assert!(n.update(array![[1.0, f64::NAN, 2.0]].view()).is_err());
+        assert_eq!(back, n, "a rejected batch leaves the statistics unchanged");
+        assert!(
+            ObsNormalizer::new(3, 0.0, 0.1)
+                .unwrap_err()
+                .to_string()
+                .contains("clip")
+        );
+    }
+}
