@@ -1,0 +1,521 @@
+//! The environment: a kinematic bicycle car on the road, a parry2d lidar
+//! and collision queries, and the [`red_core::Env`] implementation.
+
+use parry2d::math::{Pose, Vector};
+use parry2d::query::{Ray, RayCast, intersection_test};
+use parry2d::shape::Cuboid;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use red_core::{BoxSpace, Env, Info, Space, Step, TimeLimit};
+use serde::{Deserialize, Serialize};
+
+use crate::config::{ACT_DIM, DT, DriveConfig, NUM_RAYS, OBS_DIM};
+use crate::track::Track;
+use crate::{Error, Result};
+
+/// Integration sub-steps per 20 Hz control step; collisions and the end of
+/// the road are checked after each (at 100 km/h a sub-step moves 0.35 m).
+const SUBSTEPS: usize = 4;
+/// Half the thickness of a wall.
+const WALL_HALF_THICKNESS: f64 = 0.5;
+/// Half the length of a wall shape; walls are centred on the car for
+/// queries, so this only has to exceed the lidar range.
+const WALL_HALF_LENGTH: f64 = 1.0e4;
+
+/// Info key: fraction of the road completed, in `[0, 1]`.
+pub const INFO_PROGRESS: &str = "progress";
+/// Info key: distance travelled along the road since the start, metres.
+pub const INFO_DISTANCE: &str = "distance";
+/// Info key: 1 when the car reached the end of the road, else 0.
+pub const INFO_SUCCESS: &str = "success";
+/// Info key: 1 when the car hit an obstacle or a wall, else 0.
+pub const INFO_COLLISION: &str = "collision";
+/// Info key: the car's speed, m/s.
+pub const INFO_SPEED: &str = "speed";
+
+/// The car's pose and speed. `x` runs along the road from the start,
+/// `y` to the left of the driving direction from the centre line,
+/// `heading` is counter-clockwise from the road's direction.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CarState {
+    /// Position of the car's centre along the road, metres.
+    pub x: f64,
+    /// Lateral position of the car's centre, metres (positive = left).
+    pub y: f64,
+    /// Heading relative to the road, radians (positive = turned left).
+    pub heading: f64,
+    /// Speed, m/s (never negative: the car has no reverse gear).
+    pub speed: f64,
+}
+
+impl CarState {
+    /// The state at the start of an episode whose first observation is
+    /// `obs`: `x = 0`, and lateral offset, heading and speed read back from
+    /// the observation. Used to replay a demonstration's actions.
+    ///
+    /// # Errors
+    /// [`Error::Replay`] if `obs` is not an observation of this scenario.
+    pub fn from_first_observation(config: &DriveConfig, obs: &[f64]) -> Result<Self> {
+        if obs.len() != OBS_DIM {
+            return Err(Error::Replay {
+                reason: format!("an observation has {OBS_DIM} numbers, got {}", obs.len()),
+            });
+        }
+        Ok(Self {
+            x: 0.0,
+            y: obs[NUM_RAYS] * config.half_width(),
+            heading: obs[NUM_RAYS + 1] * config.heading_scale,
+            speed: obs[NUM_RAYS + 3] * config.max_speed,
+        })
+    }
+}
+
+/// How one control step ended for the car.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Outcome {
+    Driving,
+    Collision,
+    Success,
+}
+
+/// The static world: the road's obstacles and walls as parry2d shapes, and
+/// the lidar's ray directions.
+#[derive(Debug, Clone)]
+pub struct World {
+    config: DriveConfig,
+    track: Track,
+    car: Cuboid,
+    obstacle: Cuboid,
+    wall: Cuboid,
+    ray_angles: [f64; NUM_RAYS],
+}
+
+impl World {
+    /// The world for `config` (its layout from `config.track_seed`).
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] if the config is invalid.
+    pub fn new(config: &DriveConfig) -> Result<Self> {
+        config.validate()?;
+        let half = Vector::new(
+            0.5 * config.car_length as f32,
+            0.5 * config.car_width as f32,
+        );
+        Ok(Self {
+            config: config.clone(),
+            track: Track::generate(config),
+            car: Cuboid::new(half),
+            obstacle: Cuboid::new(half),
+            wall: Cuboid::new(Vector::new(
+                WALL_HALF_LENGTH as f32,
+                WALL_HALF_THICKNESS as f32,
+            )),
+            ray_angles: config.ray_angles(),
+        })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &DriveConfig {
+        &self.config
+    }
+
+    /// The layout.
+    pub fn track(&self) -> &Track {
+        &self.track
+    }
+
+    /// Directions of the rays relative to the car's heading, radians.
+    pub fn ray_angles(&self) -> &[f64; NUM_RAYS] {
+        &self.ray_angles
+    }
+
+    /// Centre lines (lateral positions) of the two walls: right, left.
+    fn wall_centres(&self) -> [f64; 2] {
+        let c = self.config.half_width() + WALL_HALF_THICKNESS;
+        [-c, c]
+    }
+
+    /// Lidar ranges in metres from the car's centre, each at most
+    /// `lidar_range`, written into `out` (ray order of [`Self::ray_angles`]).
+    /// Queries are made in coordinates centred on the car, in `f32`.
+    pub fn lidar(&self, car: &CarState, out: &mut [f64; NUM_RAYS]) {
+        let range = self.config.lidar_range;
+        let reach = range + self.config.car_length;
+        let near = self.track.between(car.x - reach, car.x + reach);
+        let walls = self.wall_centres();
+        for (r, angle) in out.iter_mut().zip(&self.ray_angles) {
+            let (s, c) = (car.heading + angle).sin_cos();
+            let dir = Vector::new(c as f32, s as f32);
+            let mut best = range as f32;
+            for o in near {
+                // The obstacle's frame is a translation of the car's, so the
+                // ray is cast in the obstacle's local coordinates directly.
+                let origin = Vector::new((car.x - o.x) as f32, (car.y - o.y) as f32);
+                if let Some(t) = self
+                    .obstacle
+                    .cast_local_ray(&Ray::new(origin, dir), best, true)
+                {
+                    best = best.min(t);
+                }
+            }
+            for wy in walls {
+                let origin = Vector::new(0.0, (car.y - wy) as f32);
+                if let Some(t) = self.wall.cast_local_ray(&Ray::new(origin, dir), best, true) {
+                    best = best.min(t);
+                }
+            }
+            *r = f64::from(best);
+        }
+    }
+
+    /// Whether the car's body overlaps an obstacle or a wall.
+    pub fn collides(&self, car: &CarState) -> bool {
+        let pose = Pose::new(Vector::ZERO, car.heading as f32);
+        let reach = self.config.car_length + 1.0;
+        for o in self.track.between(car.x - reach, car.x + reach) {
+            let other =
+                Pose::from_translation(Vector::new((o.x - car.x) as f32, (o.y - car.y) as f32));
+            if hits(&pose, &self.car, &other, &self.obstacle) {
+                return true;
+            }
+        }
+        // Cheap exact pre-check: the car's lateral extent against the road.
+        let (s, c) = car.heading.sin_cos();
+        let extent = 0.5 * self.config.car_length * s.abs() + 0.5 * self.config.car_width * c.abs();
+        if car.y.abs() + extent < self.config.half_width() - 1e-3 {
+            return false;
+        }
+        self.wall_centres().iter().any(|wy| {
+            let other = Pose::from_translation(Vector::new(0.0, (wy - car.y) as f32));
+            hits(&pose, &self.car, &other, &self.wall)
+        })
+    }
+
+    /// The 24-number observation of `car` given its lidar ranges (metres):
+    /// `[ranges / lidar_range (20), y / half_width, heading / heading_scale,
+    /// (half_width - |y|) / half_width, speed / max_speed]`, each clipped to
+    /// the observation space.
+    pub fn observation(&self, car: &CarState, ranges: &[f64; NUM_RAYS], out: &mut Vec<f64>) {
+        let c = &self.config;
+        let hw = c.half_width();
+        out.clear();
+        out.extend(ranges.iter().map(|r| (r / c.lidar_range).clamp(0.0, 1.0)));
+        out.push((car.y / hw).clamp(-1.0, 1.0));
+        out.push((wrap_angle(car.heading) / c.heading_scale).clamp(-1.0, 1.0));
+        out.push(((hw - car.y.abs()) / hw).clamp(0.0, 1.0));
+        out.push((car.speed / c.max_speed).clamp(0.0, 1.0));
+    }
+
+    /// Advances the car by one control step under `action` (clipped to
+    /// `[-1, 1]^2`), checking the end of the road and collisions after each
+    /// sub-step.
+    fn advance(&self, car: &mut CarState, action: &[f64]) -> Outcome {
+        let c = &self.config;
+        let steer = action[0].clamp(-1.0, 1.0);
+        let pedal = action[1].clamp(-1.0, 1.0);
+        let accel = if pedal >= 0.0 {
+            pedal * c.max_accel
+        } else {
+            pedal * c.max_brake
+        };
+        let h = DT / SUBSTEPS as f64;
+        let half_wb = 0.5 * c.wheelbase;
+        for _ in 0..SUBSTEPS {
+            let delta = steer * c.steer_limit(car.speed);
+            // Kinematic bicycle about the centre, rear and front axles at
+            // half the wheelbase: slip angle beta.
+            let beta = (0.5 * delta.tan()).atan();
+            let (s, co) = (car.heading + beta).sin_cos();
+            car.x += car.speed * co * h;
+            car.y += car.speed * s * h;
+            car.heading += car.speed / half_wb * beta.sin() * h;
+            let resist = if car.speed > 0.0 {
+                c.drag * car.speed * car.speed + c.rolling_resistance
+            } else {
+                0.0
+            };
+            car.speed = (car.speed + (accel - resist) * h).clamp(0.0, c.max_speed);
+            if car.x >= c.road_length {
+                return Outcome::Success;
+            }
+            if self.collides(car) {
+                return Outcome::Collision;
+            }
+        }
+        Outcome::Driving
+    }
+}
+
+fn hits(p1: &Pose, s1: &Cuboid, p2: &Pose, s2: &Cuboid) -> bool {
+    // Cuboid against cuboid is always supported by parry's dispatcher.
+    intersection_test(p1, s1, p2, s2)
+        .map(|i| i.intersecting)
+        .unwrap_or(true)
+}
+
+/// `a` wrapped into `(-pi, pi]`.
+pub fn wrap_angle(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let w = (a + PI).rem_euclid(TAU) - PI;
+    if w <= -PI { w + TAU } else { w }
+}
+
+/// The driving scenario as a [`red_core::Env`]. Observations: 24 numbers
+/// (see [`World::observation`]); actions: `[steering, accelerator/brake]` in
+/// `[-1, 1]^2` (steering +1 turns left at the steering limit; pedal +1 full
+/// throttle, -1 full brake). Out-of-range actions are clipped. The reward
+/// is the distance gained along the road this step. It terminates on a
+/// collision (info `collision` = 1) and at the end of the road (info
+/// `success` = 1); it never truncates itself: wrap it in
+/// [`red_core::TimeLimit`] or build it with [`make_env`].
+#[derive(Debug, Clone)]
+pub struct DriveEnv {
+    world: World,
+    car: CarState,
+    ranges: [f64; NUM_RAYS],
+    rng: ChaCha8Rng,
+    observation_space: Space,
+    action_space: Space,
+    in_episode: bool,
+    scratch: Vec<f64>,
+}
+
+/// The default scenario wrapped in its time limit (`config.time_limit`).
+///
+/// ```
+/// use red_core::Env;
+/// let mut env = red_drive::make_env(&red_drive::DriveConfig::default())?;
+/// let (obs, _) = env.reset(Some(0))?;
+/// assert_eq!(obs.len(), 24);
+/// let step = env.step(&[0.0, 0.15])?;
+/// assert!(step.reward > 1.0); // about 1.4 m per step at 100 km/h
+/// # Ok::<(), red_drive::Error>(())
+/// ```
+///
+/// # Errors
+/// [`Error::InvalidConfig`] for an invalid config.
+pub fn make_env(config: &DriveConfig) -> Result<TimeLimit<DriveEnv>> {
+    let env = DriveEnv::new(config)?;
+    Ok(TimeLimit::new(env, config.time_limit)?)
+}
+
+impl DriveEnv {
+    /// The scenario for `config`, without a time limit.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for an invalid config.
+    pub fn new(config: &DriveConfig) -> Result<Self> {
+        let world = World::new(config)?;
+        let mut low = vec![0.0; OBS_DIM];
+        let mut high = vec![1.0; OBS_DIM];
+        low[NUM_RAYS] = -1.0;
+        low[NUM_RAYS + 1] = -1.0;
+        high[NUM_RAYS] = 1.0;
+        high[NUM_RAYS + 1] = 1.0;
+        Ok(Self {
+            world,
+            car: CarState {
+                x: 0.0,
+                y: 0.0,
+                heading: 0.0,
+                speed: 0.0,
+            },
+            ranges: [0.0; NUM_RAYS],
+            rng: ChaCha8Rng::seed_from_u64(0),
+            observation_space: Space::Box(BoxSpace::new(low, high)?),
+            action_space: Space::Box(BoxSpace::uniform(ACT_DIM, -1.0, 1.0)),
+            in_episode: false,
+            scratch: Vec::with_capacity(OBS_DIM),
+        })
+    }
+
+    /// The static world (settings, layout, shapes).
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &DriveConfig {
+        &self.world.config
+    }
+
+    /// The layout.
+    pub fn track(&self) -> &Track {
+        &self.world.track
+    }
+
+    /// The car's current state.
+    pub fn car(&self) -> &CarState {
+        &self.car
+    }
+
+    /// The current lidar ranges in metres.
+    pub fn lidar_ranges(&self) -> &[f64; NUM_RAYS] {
+        &self.ranges
+    }
+
+    /// Starts an episode from a given state instead of a random one (for
+    /// replaying a demonstration) and returns its observation.
+    ///
+    /// # Errors
+    /// [`Error::Replay`] if the state is not finite.
+    pub fn reset_to(&mut self, car: CarState) -> Result<Vec<f64>> {
+        if ![car.x, car.y, car.heading, car.speed]
+            .iter()
+            .all(|v| v.is_finite())
+        {
+            return Err(Error::Replay {
+                reason: format!("non-finite start state {car:?}"),
+            });
+        }
+        self.car = car;
+        self.car.speed = self.car.speed.clamp(0.0, self.config().max_speed);
+        self.in_episode = true;
+        Ok(self.observe())
+    }
+
+    fn observe(&mut self) -> Vec<f64> {
+        self.world.lidar(&self.car, &mut self.ranges);
+        self.world
+            .observation(&self.car, &self.ranges, &mut self.scratch);
+        self.scratch.clone()
+    }
+
+    fn info(&self, outcome: Outcome) -> Info {
+        let c = self.config();
+        let along = self.car.x.min(c.road_length);
+        let mut info = Info::new();
+        info.set(INFO_PROGRESS, (along / c.road_length).clamp(0.0, 1.0));
+        info.set(INFO_DISTANCE, along);
+        info.set(
+            INFO_SUCCESS,
+            f64::from(u8::from(outcome == Outcome::Success)),
+        );
+        info.set(
+            INFO_COLLISION,
+            f64::from(u8::from(outcome == Outcome::Collision)),
+        );
+        info.set(INFO_SPEED, self.car.speed);
+        info
+    }
+}
+
+impl Env for DriveEnv {
+    fn observation_space(&self) -> &Space {
+        &self.observation_space
+    }
+
+    fn action_space(&self) -> &Space {
+        &self.action_space
+    }
+
+    fn reset(&mut self, seed: Option<u64>) -> red_core::Result<(Vec<f64>, Info)> {
+        if let Some(s) = seed {
+            self.rng = ChaCha8Rng::seed_from_u64(s);
+        }
+        let c = self.world.config.clone();
+        let mut noise = |scale: f64| {
+            if scale > 0.0 {
+                self.rng.random_range(-scale..=scale)
+            } else {
+                0.0
+            }
+        };
+        let y = noise(c.start_lateral_noise);
+        let heading = noise(c.start_heading_noise);
+        let speed = (c.initial_speed + noise(c.start_speed_noise)).clamp(0.0, c.max_speed);
+        let obs = self.reset_to(CarState {
+            x: 0.0,
+            y: c.lane_center(1) + y,
+            heading,
+            speed,
+        })?;
+        Ok((obs, self.info(Outcome::Driving)))
+    }
+
+    fn step(&mut self, action: &[f64]) -> red_core::Result<Step> {
+        if !self.in_episode {
+            return Err(red_core::Error::NeedsReset {
+                reason: "step called before reset or after the episode terminated".into(),
+            });
+        }
+        if action.len() != ACT_DIM {
+            return Err(red_core::Error::ShapeMismatch {
+                what: "drive action".into(),
+                expected: format!("{ACT_DIM} numbers [steering, accelerator/brake]"),
+                got: format!("{} numbers", action.len()),
+            });
+        }
+        if action.iter().any(|a| !a.is_finite()) {
+            return Err(red_core::Error::NonFinite {
+                what: "drive action".into(),
+            });
+        }
+        let road = self.config().road_length;
+        let before = self.car.x.min(road);
+        let mut car = self.car;
+        let outcome = self.world.advance(&mut car, action);
+        self.car = car;
+        let reward = self.car.x.min(road) - before;
+        let terminated = outcome != Outcome::Driving;
+        if terminated {
+            self.in_episode = false;
+        }
+        let observation = self.observe();
+        Ok(Step {
+            observation,
+            reward,
+            terminated,
+            truncated: false,
+            info: self.info(outcome),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_angle_stays_in_range() {
+        use std::f64::consts::PI;
+        for a in [-7.0, -PI, -1.0, 0.0, 1.0, PI, 7.0, 100.0] {
+            let w = wrap_angle(a);
+            assert!(w > -PI - 1e-12 && w <= PI + 1e-12, "{a} -> {w}");
+            assert!(((a - w) / std::f64::consts::TAU).fract().abs() < 1e-9 || (a - w).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn straight_driving_keeps_the_lane_and_earns_distance() {
+        let c = DriveConfig {
+            start_lateral_noise: 0.0,
+            start_heading_noise: 0.0,
+            start_speed_noise: 0.0,
+            ..Default::default()
+        };
+        let mut env = DriveEnv::new(&c).unwrap();
+        env.reset(Some(1)).unwrap();
+        // Hold speed: the accelerator that cancels drag and rolling resistance.
+        let hold = (c.drag * KMH * KMH + c.rolling_resistance) / c.max_accel;
+        let s = env.step(&[0.0, hold]).unwrap();
+        assert!((s.reward - KMH * DT).abs() < 1e-3, "{}", s.reward);
+        assert!(env.car().y.abs() < 1e-12);
+        assert!((env.car().speed - KMH).abs() < 1e-3);
+    }
+
+    const KMH: f64 = crate::config::KMH_100;
+
+    #[test]
+    fn steering_turns_left_for_positive_action() {
+        let mut env = DriveEnv::new(&DriveConfig::default()).unwrap();
+        env.reset(Some(2)).unwrap();
+        let h0 = env.car().heading;
+        env.step(&[1.0, 0.0]).unwrap();
+        assert!(env.car().heading > h0);
+        // At 100 km/h full steering turns with about max_lateral_accel.
+        let rate = (env.car().heading - h0) / DT;
+        let lat = rate * env.car().speed;
+        assert!((lat - 8.0).abs() < 1.0, "lateral acceleration {lat}");
+    }
+}
