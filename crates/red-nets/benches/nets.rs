@@ -65,7 +65,7 @@ fn rnd_fit(c: &mut Criterion) {
             let pred = predictor.forward_tape(data.slice(rows), &mut tape);
             let loss = mse_loss_into(pred, targets.slice(rows), &mut dpred);
             grads.zero();
-            predictor.backward(&tape, dpred.view(), &mut grads);
+            predictor.backward_params(&tape, dpred.view(), &mut grads);
             adam.step(&mut predictor, &grads).unwrap();
             black_box(loss)
         })
@@ -83,7 +83,7 @@ fn rnd_fit(c: &mut Criterion) {
             let pred = predictor.forward_tape(x, &mut tape);
             let loss = mse_loss_into(pred, t, &mut dpred);
             grads.zero();
-            predictor.backward(&tape, dpred.view(), &mut grads);
+            predictor.backward_params(&tape, dpred.view(), &mut grads);
             adam.step(&mut predictor, &grads).unwrap();
             black_box(loss)
         })

@@ -346,6 +346,31 @@ impl Mlp {
         grad_out: ArrayView2<'_, f32>,
         grads: &mut Gradients,
     ) -> Array2<f32> {
+        self.backward_impl(tape, grad_out, grads, true)
+    }
+
+    /// [`Mlp::backward`] without the input gradient: accumulates the
+    /// parameter gradients only and skips the first layer's input product
+    /// (what training a network on a loss needs).
+    ///
+    /// # Panics
+    /// As [`Mlp::backward`].
+    pub fn backward_params(
+        &self,
+        tape: &Tape,
+        grad_out: ArrayView2<'_, f32>,
+        grads: &mut Gradients,
+    ) {
+        self.backward_impl(tape, grad_out, grads, false);
+    }
+
+    fn backward_impl(
+        &self,
+        tape: &Tape,
+        grad_out: ArrayView2<'_, f32>,
+        grads: &mut Gradients,
+        want_input_grad: bool,
+    ) -> Array2<f32> {
         self.assert_tape(tape, "Mlp::backward");
         let out = &tape.acts[self.layers.len()];
         assert_eq!(
@@ -369,6 +394,9 @@ impl Mlp {
                 for (d, &v) in db.iter_mut().zip(row) {
                     *d += v;
                 }
+            }
+            if i == 0 && !want_input_grad {
+                return Array2::zeros((0, 0));
             }
             let mut g_in = Array2::zeros((g.nrows(), layer.w.nrows()));
             general_mat_mul(1.0, &g, &layer.w.t(), 0.0, &mut g_in);

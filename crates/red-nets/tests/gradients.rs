@@ -292,6 +292,9 @@ fn backward_accumulates() {
     net.forward_tape(x.view(), &mut tape);
     let mut once = net.zero_grads();
     net.backward(&tape, u.view(), &mut once);
+    let mut params_only = net.zero_grads();
+    net.backward_params(&tape, u.view(), &mut params_only);
+    assert_eq!(params_only, once);
     let mut twice = net.zero_grads();
     net.backward(&tape, u.view(), &mut twice);
     net.backward(&tape, u.view(), &mut twice);
