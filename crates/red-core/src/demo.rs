@@ -333,6 +333,14 @@ impl Demos {
                 "the file is empty, expected a JSON demo object".into(),
             ));
         }
+        if !text.trim_start().starts_with('{') {
+            let found: String = text.trim_start().chars().take(20).collect();
+            return Err(demo_err(
+                None,
+                None,
+                format!("expected a JSON object with the {FORMAT_NAME} header, found `{found}`"),
+            ));
+        }
         // The header first, so that a file of another format or version is
         // named as such rather than failing on its first unfamiliar field.
         let probe: Probe = serde_json::from_str(text).map_err(|e| json_error(text, &e))?;
