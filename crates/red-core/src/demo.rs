@@ -258,14 +258,14 @@ impl Demos {
                 ),
             ));
         }
-        if let Some(hz) = self.control_hz {
-            if !(hz.is_finite() && hz > 0.0) {
-                return Err(err(
-                    None,
-                    None,
-                    format!("control_hz is {hz}, it must be a positive finite number"),
-                ));
-            }
+        if let Some(hz) = self.control_hz
+            && !(hz.is_finite() && hz > 0.0)
+        {
+            return Err(err(
+                None,
+                None,
+                format!("control_hz is {hz}, it must be a positive finite number"),
+            ));
         }
         if self.trajectories.is_empty() {
             return Err(err(None, None, "no trajectories".into()));
@@ -286,31 +286,31 @@ impl Demos {
                     ),
                 ));
             }
-            if let Some(r) = &t.rewards {
-                if r.len() != n {
-                    return Err(err(
-                        Some(i),
-                        None,
-                        format!(
-                            "{} rewards but {n} actions: need one reward per step",
-                            r.len()
-                        ),
-                    ));
-                }
+            if let Some(r) = &t.rewards
+                && r.len() != n
+            {
+                return Err(err(
+                    Some(i),
+                    None,
+                    format!(
+                        "{} rewards but {n} actions: need one reward per step",
+                        r.len()
+                    ),
+                ));
             }
             for k in 0..n {
                 check_row("observation", &t.observations[k], self.obs_dim, "obs_dim")
                     .map_err(|r| err(Some(i), Some(k), r))?;
                 check_row("action", &t.actions[k], self.act_dim, "act_dim")
                     .map_err(|r| err(Some(i), Some(k), r))?;
-                if let Some(r) = &t.rewards {
-                    if !r[k].is_finite() {
-                        return Err(err(
-                            Some(i),
-                            Some(k),
-                            format!("reward is {}, not a finite number", r[k]),
-                        ));
-                    }
+                if let Some(r) = &t.rewards
+                    && !r[k].is_finite()
+                {
+                    return Err(err(
+                        Some(i),
+                        Some(k),
+                        format!("reward is {}, not a finite number", r[k]),
+                    ));
                 }
             }
         }
@@ -511,24 +511,22 @@ fn json_error(text: &str, e: &serde_json::Error) -> Error {
     use serde_json::error::Category;
     // serde_json reports `NaN` as "expected value" and `1e400` as "number
     // out of range"; a scan names the token instead, if it is what failed.
-    if matches!(e.classify(), Category::Syntax | Category::Eof) {
-        if let Some(bad) = crate::json_loc::first_non_finite(text) {
-            let err_offset = crate::json_loc::offset_of(text, e.line(), e.column());
-            if bad.offset <= err_offset {
-                let (trajectory, step) = bad.path.trajectory_step();
-                return demo_err(
-                    trajectory,
-                    step,
-                    format!(
-                        "line {} column {} ({}): {}",
-                        bad.line,
-                        bad.column,
-                        bad.path,
-                        bad.problem()
-                    ),
-                );
-            }
-        }
+    if matches!(e.classify(), Category::Syntax | Category::Eof)
+        && let Some(bad) = crate::json_loc::first_non_finite(text)
+        && bad.offset <= crate::json_loc::offset_of(text, e.line(), e.column())
+    {
+        let (trajectory, step) = bad.path.trajectory_step();
+        return demo_err(
+            trajectory,
+            step,
+            format!(
+                "line {} column {} ({}): {}",
+                bad.line,
+                bad.column,
+                bad.path,
+                bad.problem()
+            ),
+        );
     }
     let offset = crate::json_loc::offset_of(text, e.line(), e.column());
     let path = crate::json_loc::path_at(text, offset);

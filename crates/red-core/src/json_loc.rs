@@ -205,11 +205,10 @@ impl<'a> Scanner<'a> {
                         i += if self.bytes[i] == b'\\' { 2 } else { 1 };
                     }
                     let end = i.min(limit);
-                    if let Some(Frame::Object { key, want_key }) = self.stack.last_mut() {
-                        if *want_key {
-                            *key =
-                                Some(String::from_utf8_lossy(&self.bytes[start..end]).into_owned());
-                        }
+                    if let Some(Frame::Object { key, want_key }) = self.stack.last_mut()
+                        && *want_key
+                    {
+                        *key = Some(String::from_utf8_lossy(&self.bytes[start..end]).into_owned());
                     }
                     self.pos = (end + 1).min(limit);
                 }

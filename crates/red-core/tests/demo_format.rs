@@ -375,10 +375,10 @@ fn garbage_never_panics() {
         for b in [b'"', b'N', b'[', b'}', b'9', b'e', b'-', b',', b' '] {
             let mut v = bytes.to_vec();
             v[i] = b;
-            if let Ok(t) = std::str::from_utf8(&v) {
-                if let Ok(d) = Demos::from_json_str(t) {
-                    d.validate().unwrap();
-                }
+            if let Ok(t) = std::str::from_utf8(&v)
+                && let Ok(d) = Demos::from_json_str(t)
+            {
+                d.validate().unwrap();
             }
         }
     }

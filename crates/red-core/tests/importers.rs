@@ -1,0 +1,267 @@
+//! The importers on fixtures made by `tests/fixtures/make_fixtures.py`
+//! (numpy 2), and on truncated and corrupted copies of them.
+
+use std::path::PathBuf;
+
+use red_core::import::{
+    baselines_npz_from_bytes, read_baselines_npz, read_red_pickle, red_pickle_from_bytes,
+};
+use red_core::{Demos, EpisodeEnd, Error};
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures")
+        .join(name)
+}
+
+fn expected() -> serde_json::Value {
+    let text = std::fs::read_to_string(fixture("expected.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+fn rows(v: &serde_json::Value) -> Vec<Vec<f64>> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            r.as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        })
+        .collect()
+}
+
+fn flat(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+fn all_obs(d: &Demos) -> Vec<Vec<f64>> {
+    d.trajectories
+        .iter()
+        .flat_map(|t| t.observations.clone())
+        .collect()
+}
+
+fn all_acts(d: &Demos) -> Vec<Vec<f64>> {
+    d.trajectories
+        .iter()
+        .flat_map(|t| t.actions.clone())
+        .collect()
+}
+
+#[test]
+fn red_pickles_of_every_protocol_decode_exactly() {
+    let want = &expected()["red"];
+    for name in ["red_p2.pkl", "red_p4.pkl", "red_p5.pkl"] {
+        let d = read_red_pickle(&fixture(name), "Toy-v0", 5).unwrap();
+        assert_eq!(d.env_id, "Toy-v0");
+        assert_eq!((d.obs_dim, d.act_dim), (3, 2), "{name}");
+        assert_eq!(d.lengths(), vec![5, 5], "{name}");
+        assert!(
+            d.trajectories
+                .iter()
+                .all(|t| t.end == EpisodeEnd::Truncated && t.rewards.is_none())
+        );
+        // float64 observations and float32 actions are recovered bit for bit.
+        assert_eq!(all_obs(&d), rows(&want["observations"]), "{name}");
+        assert_eq!(all_acts(&d), rows(&want["actions"]), "{name}");
+        d.validate().unwrap();
+    }
+}
+
+#[test]
+fn red_pickle_trajectory_length_must_divide_the_rows() {
+    let e = read_red_pickle(&fixture("red_p4.pkl"), "Toy-v0", 3)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("red_p4.pkl"), "{e}");
+    assert!(
+        e.contains("10 rows are not a whole number of trajectories of 3 steps"),
+        "{e}"
+    );
+    let d = read_red_pickle(&fixture("red_p4.pkl"), "Toy-v0", 10).unwrap();
+    assert_eq!(d.lengths(), vec![10]);
+    assert!(read_red_pickle(&fixture("red_p4.pkl"), "Toy-v0", 0).is_err());
+}
+
+#[test]
+fn red_pickle_errors_name_the_problem() {
+    let e = read_red_pickle(&fixture("baselines_flat.npz"), "x", 5)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("baselines_flat.npz") && e.contains("not a readable pickle"),
+        "{e}"
+    );
+    let e = read_red_pickle(&fixture("nope.pkl"), "x", 5).unwrap_err();
+    assert!(matches!(e, Error::Io { .. }), "{e:?}");
+    // A pickled dict without `actions`: PROTO 2, EMPTY_DICT, MARK,
+    // BINUNICODE 'observations', NONE, SETITEMS, STOP.
+    let mut p = vec![0x80, 2, b'}', b'('];
+    p.push(b'X');
+    p.extend(12u32.to_le_bytes());
+    p.extend(b"observations");
+    p.extend([b'N', b'u', b'.']);
+    let e = red_pickle_from_bytes(&p, "x", 5).unwrap_err().to_string();
+    assert!(
+        e.contains("`observations`: expected a numpy array, found None"),
+        "{e}"
+    );
+}
+
+/// Every prefix of `bytes` must fail; every byte flipped must fail or
+/// decode to a valid set; nothing may panic. Returns the number of flips
+/// that were caught.
+fn torture(bytes: &[u8], decode: impl Fn(&[u8]) -> red_core::Result<Demos>) -> usize {
+    for cut in 0..bytes.len() {
+        assert!(
+            decode(&bytes[..cut]).is_err(),
+            "prefix of {cut} bytes decoded"
+        );
+    }
+    let mut errors = 0;
+    for i in 0..bytes.len() {
+        for flip in [0xff, 0x01, 0x80] {
+            let mut v = bytes.to_vec();
+            v[i] ^= flip;
+            match decode(&v) {
+                Err(_) => errors += 1,
+                // A flip inside the numbers can still decode: it must then
+                // be a valid set.
+                Ok(d) => d.validate().unwrap(),
+            }
+        }
+    }
+    errors
+}
+
+#[test]
+fn corrupt_pickles_never_panic() {
+    for name in ["red_p2.pkl", "red_p4.pkl", "red_p5.pkl"] {
+        let bytes = std::fs::read(fixture(name)).unwrap();
+        let caught = torture(&bytes, |b| red_pickle_from_bytes(b, "x", 5));
+        // Flips in the opcodes and lengths are caught; flips in the numbers
+        // cannot be.
+        assert!(caught > bytes.len() / 2, "{name}: {caught} flips caught");
+    }
+}
+
+#[test]
+fn truncated_pickle_reports_its_offset() {
+    let bytes = std::fs::read(fixture("red_p4.pkl")).unwrap();
+    let e = red_pickle_from_bytes(&bytes[..300], "x", 5)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("pickle byte") && e.contains("truncated"), "{e}");
+}
+
+#[test]
+fn baselines_npz_per_episode_layout() {
+    let want = &expected()["episodes"];
+    let d = read_baselines_npz(&fixture("baselines_episodes.npz"), "Toy-v0", 4).unwrap();
+    assert_eq!((d.obs_dim, d.act_dim), (3, 2));
+    assert_eq!(d.lengths(), vec![4, 4]);
+    assert_eq!(all_obs(&d), rows(&want["observations"]));
+    assert_eq!(all_acts(&d), rows(&want["actions"]));
+    let rewards: Vec<f64> = d
+        .trajectories
+        .iter()
+        .flat_map(|t| t.rewards.clone().unwrap())
+        .collect();
+    assert_eq!(rewards, flat(&want["rewards"]));
+    // Episodes as long as the time limit were truncated by it...
+    assert!(
+        d.trajectories
+            .iter()
+            .all(|t| t.end == EpisodeEnd::Truncated)
+    );
+    // ...shorter ones ended by the task, and longer ones are an error.
+    let d = read_baselines_npz(&fixture("baselines_episodes.npz"), "Toy-v0", 1000).unwrap();
+    assert!(
+        d.trajectories
+            .iter()
+            .all(|t| t.end == EpisodeEnd::Terminated)
+    );
+    let e = read_baselines_npz(&fixture("baselines_episodes.npz"), "Toy-v0", 3).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("trajectory 0: episode of 4 steps is longer than the time limit of 3"),
+        "{e}"
+    );
+}
+
+#[test]
+fn baselines_npz_flat_layout_deflated_with_lens() {
+    let want = &expected()["flat"];
+    let d = read_baselines_npz(&fixture("baselines_flat.npz"), "Toy-v0", 5).unwrap();
+    assert_eq!((d.obs_dim, d.act_dim), (3, 1));
+    assert_eq!(d.lengths(), vec![5, 3]);
+    assert_eq!(all_obs(&d), rows(&want["observations"]));
+    assert_eq!(all_acts(&d), rows(&want["actions"]));
+    assert_eq!(d.trajectories[0].end, EpisodeEnd::Truncated);
+    assert_eq!(d.trajectories[1].end, EpisodeEnd::Terminated);
+    let rewards: Vec<f64> = d
+        .trajectories
+        .iter()
+        .flat_map(|t| t.rewards.clone().unwrap())
+        .collect();
+    assert_eq!(rewards, flat(&want["rewards"]));
+}
+
+#[test]
+fn baselines_npz_ragged_object_arrays() {
+    let want = &expected()["ragged"];
+    let d = read_baselines_npz(&fixture("baselines_ragged.npz"), "Toy-v0", 4).unwrap();
+    assert_eq!(d.lengths(), vec![4, 2]);
+    assert_eq!(all_obs(&d), rows(&want["observations"]));
+    assert_eq!(all_acts(&d), rows(&want["actions"]));
+    assert!(d.trajectories.iter().all(|t| t.rewards.is_none()));
+}
+
+#[test]
+fn corrupt_npz_never_panics() {
+    for name in [
+        "baselines_episodes.npz",
+        "baselines_flat.npz",
+        "baselines_ragged.npz",
+    ] {
+        let bytes = std::fs::read(fixture(name)).unwrap();
+        // The CRC catches flips in the data too; flips in fields the reader
+        // has no use for (times, attributes, local copies of names) pass.
+        let caught = torture(&bytes, |b| baselines_npz_from_bytes(b, "x", 1000));
+        assert!(
+            caught > bytes.len(),
+            "{name}: {caught} of {} flips caught",
+            3 * bytes.len()
+        );
+    }
+}
+
+#[test]
+fn npz_errors_name_file_and_problem() {
+    let path = fixture("baselines_flat.npz");
+    let bytes = std::fs::read(&path).unwrap();
+    let e = baselines_npz_from_bytes(&bytes[..bytes.len() - 30], "x", 1000).unwrap_err();
+    assert!(e.to_string().contains("not a readable .npz"), "{e}");
+    let e = read_baselines_npz(&fixture("red_p2.pkl"), "x", 1000)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("red_p2.pkl") && e.contains("not a zip archive"),
+        "{e}"
+    );
+    // Corrupting a stored entry's data is caught by its CRC.
+    let mut stored = std::fs::read(fixture("baselines_episodes.npz")).unwrap();
+    let at = stored.windows(6).position(|w| w == b"\x93NUMPY").unwrap() + 200;
+    stored[at] ^= 0x55;
+    let e = baselines_npz_from_bytes(&stored, "x", 1000)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("CRC"), "{e}");
+}
