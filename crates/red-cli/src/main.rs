@@ -17,13 +17,18 @@ struct Cli {
 enum Command {
     /// Inspect a demonstration file: environment, dimensions, trajectories.
     Demo(demo::DemoArgs),
+    /// Support estimation: fit RND, AE or kernel PCA on a demo file; score
+    /// pairs and RED's reward with a fitted model.
+    Support(support::SupportArgs),
 }
 
 mod demo;
+mod support;
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Demo(args) => demo::run(args),
+        Command::Support(args) => support::run(args),
     }
 }

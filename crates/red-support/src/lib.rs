@@ -33,6 +33,7 @@
 //! ```
 
 pub mod autoencoder;
+pub mod cross_val;
 pub mod error;
 pub mod estimator;
 pub mod input;
@@ -43,6 +44,7 @@ pub mod stats;
 pub mod terminal;
 mod train;
 
+pub use cross_val::held_out_scores;
 pub use autoencoder::{Autoencoder, AutoencoderConfig};
 pub use error::{Error, Result};
 pub use estimator::{
