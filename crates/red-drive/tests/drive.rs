@@ -22,6 +22,25 @@ fn quiet() -> DriveConfig {
 }
 
 #[test]
+fn env_passes_the_env_checker() {
+    let mut env = make_env(&DriveConfig::default()).unwrap();
+    let report = red_core::check::check_env(&mut env, 3, 400).unwrap();
+    assert!(report.terminated >= 2, "{report}");
+    assert_eq!(report.after_end, red_core::check::AfterEnd::NeedsReset);
+    for key in [INFO_PROGRESS, INFO_DISTANCE, INFO_SUCCESS, INFO_COLLISION] {
+        assert!(report.info_keys.contains(&key), "{report}");
+    }
+    // A short time limit: truncated episodes too.
+    let mut env = make_env(&DriveConfig {
+        time_limit: 4,
+        ..Default::default()
+    })
+    .unwrap();
+    let report = red_core::check::check_env(&mut env, 4, 100).unwrap();
+    assert!(report.truncated >= 5, "{report}");
+}
+
+#[test]
 fn env_is_deterministic_and_stays_in_its_spaces() {
     use rand::SeedableRng;
     let mut env = make_env(&DriveConfig::default()).unwrap();
