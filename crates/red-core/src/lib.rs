@@ -2,6 +2,15 @@
 //! [`Space`]s, the [`TimeLimit`] and [`RewardWrapper`] wrappers, the
 //! [`RewardModel`] trait, seeding, and expert demonstrations.
 //!
+//! - [`check`]: the checker every environment of the project passes
+//!   (determinism from a seed, observations finite and in their space,
+//!   `NeedsReset` after the end, malformed actions rejected).
+//! - [`demo`]: the versioned JSON demonstration format, validated on read
+//!   with the file, trajectory, step (and line and column) of the first
+//!   problem, written atomically.
+//! - [`import`]: the original RED release's pickles and OpenAI baselines'
+//!   `.npz` experts, read without Python.
+//!
 //! ```
 //! use red_core::{check_env, Env, TimeLimit};
 //! # use red_core::{Info, Result, Space, Step, BoxSpace};

@@ -109,6 +109,19 @@ fn huge_number_is_out_of_range() {
 }
 
 #[test]
+fn huge_integers_and_negative_overflow_are_out_of_range_too() {
+    let big = format!("1{}", "0".repeat(400));
+    for tok in [big.as_str(), "-1e400", "1.5E+309"] {
+        let text = with("[0.5, 1.0]]", &format!("[0.5, {tok}]]"));
+        let msg = rejected(&text);
+        assert_has(
+            &msg,
+            &["trajectory 0, step 1", "line 9", "out of range for f64"],
+        );
+    }
+}
+
+#[test]
 fn truncated_json_reports_line_and_column() {
     let cut = &BASE[..BASE.find("[0.4]").unwrap()];
     let msg = rejected(cut);

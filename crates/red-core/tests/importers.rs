@@ -265,3 +265,67 @@ fn npz_errors_name_file_and_problem() {
         .to_string();
     assert!(e.contains("CRC"), "{e}");
 }
+
+/// Pickle bytes as Python 2's numpy wrote them: text GLOBALs, `str` (not
+/// `bytes`) for the type codes and the raw data, ints for the dtype flags.
+fn python2_array(out: &mut Vec<u8>, typestr: &str, shape: &[u8], raw: &[u8]) {
+    let short_str = |out: &mut Vec<u8>, s: &[u8]| {
+        out.push(b'U');
+        out.push(s.len() as u8);
+        out.extend(s);
+    };
+    out.extend(b"cnumpy.core.multiarray\n_reconstruct\n");
+    out.extend(b"cnumpy\nndarray\n");
+    out.extend([b'K', 0, 0x85]);
+    short_str(out, b"b");
+    out.extend([0x87, b'R', b'(', b'K', 1]);
+    out.push(b'(');
+    for &d in shape {
+        out.extend([b'K', d]);
+    }
+    out.push(b't');
+    out.extend(b"cnumpy\ndtype\n");
+    short_str(out, typestr.as_bytes());
+    out.extend([b'K', 0, b'K', 1, 0x87, b'R']);
+    out.extend([b'(', b'K', 3]);
+    short_str(out, b"<");
+    out.extend([
+        b'N', b'N', b'N', b'J', 0xff, 0xff, 0xff, 0xff, b'J', 0xff, 0xff, 0xff, 0xff,
+    ]);
+    out.extend([b'K', 0, b't', b'b', 0x89]);
+    out.push(b'T');
+    out.extend((raw.len() as u32).to_le_bytes());
+    out.extend(raw);
+    out.extend([b't', b'b']);
+}
+
+#[test]
+fn python2_style_red_pickles_decode() {
+    let obs: Vec<f64> = (0..6).map(|i| i as f64 * 0.5).collect();
+    let acs: Vec<f32> = vec![0.25, -0.75, 1.0];
+    let mut p = vec![0x80, 2, b'}', b'q', 0, b'('];
+    p.extend([b'U', 12]);
+    p.extend(b"observations");
+    python2_array(
+        &mut p,
+        "f8",
+        &[3, 2],
+        &obs.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<_>>(),
+    );
+    p.extend([b'U', 7]);
+    p.extend(b"actions");
+    python2_array(
+        &mut p,
+        "f4",
+        &[3, 1, 1],
+        &acs.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<_>>(),
+    );
+    p.extend([b'u', b'.']);
+    let d = red_pickle_from_bytes(&p, "Old-v2", 3).unwrap();
+    assert_eq!((d.obs_dim, d.act_dim), (2, 1));
+    assert_eq!(d.trajectories[0].observations[2], vec![2.0, 2.5]);
+    assert_eq!(
+        d.trajectories[0].actions,
+        vec![vec![0.25], vec![-0.75], vec![1.0]]
+    );
+}
