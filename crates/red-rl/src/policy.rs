@@ -237,8 +237,51 @@ pub const POLICY_FORMAT_VERSION: u32 = 1;
 /// Buffers for [`GaussianPolicy::act_into`], reused across steps.
 #[derive(Debug, Clone, Default)]
 pub struct PolicyWorkspace {
-    obs: Array2<f32>,
-    ws: Workspace,
+    input: Vec<f32>,
+    hidden: Vec<f32>,
+    out: Vec<f32>,
+}
+
+/// One row through the network: `x` (the input) is overwritten layer by
+/// layer, the result is left in `out`. A dedicated vector-matrix loop:
+/// for a single row, a general matrix product spends more time packing the
+/// weights than multiplying, and acting is once per environment step.
+fn forward_row(net: &Mlp, x: &mut Vec<f32>, tmp: &mut Vec<f32>, out: &mut Vec<f32>) {
+    let layers = net.layers();
+    let last = layers.len() - 1;
+    for (l, layer) in layers.iter().enumerate() {
+        let act = if l == last {
+            net.config().output_activation
+        } else {
+            net.config().activation
+        };
+        let dst = if l == last { &mut *out } else { &mut *tmp };
+        dst.clear();
+        dst.extend(layer.b.iter());
+        let width = dst.len();
+        match layer.w.as_slice() {
+            Some(w) => {
+                for (xi, row) in x.iter().zip(w.chunks_exact(width)) {
+                    for (d, wij) in dst.iter_mut().zip(row) {
+                        *d += xi * wij;
+                    }
+                }
+            }
+            None => {
+                for (i, xi) in x.iter().enumerate() {
+                    for (d, wij) in dst.iter_mut().zip(layer.w.row(i)) {
+                        *d += xi * wij;
+                    }
+                }
+            }
+        }
+        for d in dst.iter_mut() {
+            *d = act.apply(*d);
+        }
+        if l != last {
+            std::mem::swap(x, tmp);
+        }
+    }
 }
 
 impl GaussianPolicy {
@@ -537,32 +580,30 @@ impl GaussianPolicy {
                 step: 0,
             });
         }
-        if ws.obs.dim() != (1, self.obs_dim) {
-            ws.obs = Array2::zeros((1, self.obs_dim));
-        }
-        let row = ws.obs.as_slice_mut().expect("contiguous");
+        ws.input.resize(self.obs_dim, 0.0);
         match &self.normalizer {
-            Some(n) => n.normalize_into(obs, row)?,
+            Some(n) => n.normalize_into(obs, &mut ws.input)?,
             None => {
-                for (r, o) in row.iter_mut().zip(obs) {
+                for (r, o) in ws.input.iter_mut().zip(obs) {
                     *r = *o as f32;
                 }
             }
         }
-        let out = self.net.forward(ws.obs.view(), &mut ws.ws);
+        forward_row(&self.net, &mut ws.input, &mut ws.hidden, &mut ws.out);
+        let out = &ws.out;
         let (lo, hi) = (self.config.log_std_min, self.config.log_std_max);
         let k = self.act_dim;
         match rng {
             Some(rng) => {
                 for j in 0..k {
-                    let sigma = (out[[0, k + j]].clamp(lo, hi) as f64).exp();
+                    let sigma = (out[k + j].clamp(lo, hi) as f64).exp();
                     let e: f64 = rng.sample(StandardNormal);
-                    action[j] = out[[0, j]] as f64 + sigma * e;
+                    action[j] = out[j] as f64 + sigma * e;
                 }
             }
             None => {
                 for j in 0..k {
-                    action[j] = out[[0, j]] as f64;
+                    action[j] = out[j] as f64;
                 }
             }
         }
@@ -705,6 +746,28 @@ mod tests {
         assert!((m - mean).abs() < 0.01, "{m} vs {mean}");
         assert!((sd - want_sd).abs() < 0.01, "{sd} vs {want_sd}");
         assert!((want_sd - (-1.0f64).exp()).abs() < 0.05);
+    }
+
+    #[test]
+    fn single_row_path_matches_batch_forward() {
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let norm =
+            ObsNormalizer::from_data(array![[0.0, 1.0, 2.0], [2.0, 3.0, -1.0]].view(), 5.0, 0.1)
+                .unwrap();
+        let cfg = GaussianPolicyConfig {
+            output_scale: 1.0,
+            ..Default::default()
+        };
+        let pol = GaussianPolicy::new(&cfg, 3, 2, Some(norm), &mut rng).unwrap();
+        let raw = array![[0.5, -2.0, 7.0]];
+        let x = pol.prepare_obs(raw.view()).unwrap();
+        let d = pol.distribution(x.view(), &mut Workspace::new()).unwrap();
+        let a = pol
+            .act_deterministic(raw.row(0).as_slice().unwrap())
+            .unwrap();
+        for j in 0..2 {
+            assert!((a[j] - d.mean[[0, j]]).abs() < 1e-5, "{a:?} vs {}", d.mean);
+        }
     }
 
     #[test]
