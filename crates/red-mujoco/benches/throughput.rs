@@ -13,7 +13,7 @@
 //! ("elements") per second.
 
 use std::hint::black_box;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use criterion::{Criterion, Throughput};
 use rand::{RngExt, SeedableRng};
@@ -66,65 +66,138 @@ fn record(id: EnvId) -> Recording {
     }
 }
 
-fn bench_env(c: &mut Criterion, id: EnvId) {
-    let rec = record(id);
-    let n_resets = rec.resets.iter().filter(|r| r.is_some()).count();
-    let mut group = c.benchmark_group(id.name());
-    group
-        .throughput(Throughput::Elements(STEPS as u64))
-        .sample_size(10)
-        .warm_up_time(Duration::from_secs(1))
-        .measurement_time(Duration::from_secs(4));
+type TimedEnv = red_core::TimeLimit<red_mujoco::BoxedEnv>;
 
-    let mut env = id.make().unwrap();
-    group.bench_function("env_step", |b| {
-        b.iter(|| {
-            env.reset(Some(SEED)).unwrap();
-            for a in &rec.actions {
-                let step = env.step(black_box(a)).unwrap();
-                if step.terminated || step.truncated {
-                    env.reset(None).unwrap();
-                }
-                black_box(&step);
-            }
-        })
-    });
-    assert_eq!(state(env.inner()), rec.end, "the env replay diverged");
+/// Replays the recording through the environment.
+fn replay_env(env: &mut TimedEnv, rec: &Recording) {
+    env.reset(Some(SEED)).unwrap();
+    for a in &rec.actions {
+        let step = env.step(black_box(a)).unwrap();
+        if step.terminated || step.truncated {
+            env.reset(None).unwrap();
+        }
+        black_box(&step);
+    }
+}
 
-    let file = match id {
+/// Replays the recording with nothing but the physics: controls, `mj_step`,
+/// and the recorded resets.
+fn replay_raw(sim: &mut Simulation, rec: &Recording) {
+    let frame_skip = sim.frame_skip();
+    sim.reset();
+    sim.set_state(&rec.start.0, &rec.start.1).unwrap();
+    for (a, reset) in rec.actions.iter().zip(&rec.resets) {
+        let data = sim.data_mut();
+        data.ctrl_mut().copy_from_slice(black_box(a));
+        for _ in 0..frame_skip {
+            data.step();
+        }
+        if let Some((qpos, qvel)) = reset {
+            sim.reset();
+            sim.set_state(qpos, qvel).unwrap();
+        }
+    }
+    black_box(sim.qpos()[0]);
+}
+
+fn model_file(id: EnvId) -> &'static str {
+    match id {
         EnvId::Hopper => "hopper.xml",
         EnvId::HalfCheetah => "half_cheetah.xml",
         EnvId::Walker2d => "walker2d_v5.xml",
         EnvId::Ant => "ant.xml",
         EnvId::Reacher => "reacher.xml",
-    };
+    }
+}
+
+/// Environment and raw replays timed alternately, `PAIRS` times, so that
+/// both see the same load of a shared machine; the ratio of each pair, then
+/// the median over pairs.
+const PAIRS: usize = 15;
+
+/// Seconds this thread has run on a CPU (from `/proc/thread-self/schedstat`),
+/// so that time spent waiting for a core on a busy machine is not counted;
+/// wall time where that file is missing.
+fn busy_seconds(wall_origin: Instant) -> f64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse::<u64>().ok())
+        .map(|ns| ns as f64 * 1e-9)
+        .unwrap_or_else(|| wall_origin.elapsed().as_secs_f64())
+}
+
+struct Paired {
+    env_steps_per_s: f64,
+    raw_steps_per_s: f64,
+    ratio: f64,
+    ratio_min: f64,
+    ratio_max: f64,
+}
+
+fn median(mut x: Vec<f64>) -> f64 {
+    x.sort_by(f64::total_cmp);
+    let n = x.len();
+    if n % 2 == 1 {
+        x[n / 2]
+    } else {
+        0.5 * (x[n / 2 - 1] + x[n / 2])
+    }
+}
+
+fn paired(env: &mut TimedEnv, sim: &mut Simulation, rec: &Recording) -> Paired {
+    let (mut env_t, mut raw_t, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
+    let origin = Instant::now();
+    for _ in 0..PAIRS {
+        let t = busy_seconds(origin);
+        replay_env(env, rec);
+        let e = busy_seconds(origin) - t;
+        let t = busy_seconds(origin);
+        replay_raw(sim, rec);
+        let r = busy_seconds(origin) - t;
+        env_t.push(e);
+        raw_t.push(r);
+        ratios.push(r / e);
+    }
+    let lo = ratios.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = ratios.iter().copied().fold(0.0, f64::max);
+    Paired {
+        env_steps_per_s: STEPS as f64 / median(env_t),
+        raw_steps_per_s: STEPS as f64 / median(raw_t),
+        ratio: median(ratios),
+        ratio_min: lo,
+        ratio_max: hi,
+    }
+}
+
+fn bench_env(c: &mut Criterion, id: EnvId) -> Paired {
+    let rec = record(id);
+    let n_resets = rec.resets.iter().filter(|r| r.is_some()).count();
+    let mut env = id.make().unwrap();
     let frame_skip = env.inner().simulation().frame_skip();
-    let mut sim = Simulation::load(file, frame_skip).unwrap();
-    group.bench_function("raw_mj_step", |b| {
-        b.iter(|| {
-            sim.reset();
-            sim.set_state(&rec.start.0, &rec.start.1).unwrap();
-            for (a, reset) in rec.actions.iter().zip(&rec.resets) {
-                let data = sim.data_mut();
-                data.ctrl_mut().copy_from_slice(black_box(a));
-                for _ in 0..frame_skip {
-                    data.step();
-                }
-                if let Some((qpos, qvel)) = reset {
-                    sim.reset();
-                    sim.set_state(qpos, qvel).unwrap();
-                }
-            }
-            black_box(sim.qpos()[0]);
-        })
-    });
-    // Same physics on both sides: the raw loop ends where the env ended.
+    let mut sim = Simulation::load(model_file(id), frame_skip).unwrap();
+
+    // Both replays must integrate the recorded trajectory exactly.
+    replay_env(&mut env, &rec);
+    assert_eq!(state(env.inner()), rec.end, "the env replay diverged");
+    replay_raw(&mut sim, &rec);
     assert_eq!(state_of(&sim), rec.end, "the raw replay diverged");
+
+    let mut group = c.benchmark_group(id.name());
+    group
+        .throughput(Throughput::Elements(STEPS as u64))
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(3));
+    group.bench_function("env_step", |b| b.iter(|| replay_env(&mut env, &rec)));
+    group.bench_function("raw_mj_step", |b| b.iter(|| replay_raw(&mut sim, &rec)));
     group.finish();
+
+    let p = paired(&mut env, &mut sim, &rec);
     eprintln!(
         "{}: frame_skip {frame_skip}, {n_resets} resets in {STEPS} steps",
         id.name()
     );
+    p
 }
 
 fn state_of(sim: &Simulation) -> (Vec<f64>, Vec<f64>) {
@@ -133,8 +206,26 @@ fn state_of(sim: &Simulation) -> (Vec<f64>, Vec<f64>) {
 
 fn main() {
     let mut c = Criterion::default().configure_from_args();
+    let mut table = Vec::new();
     for id in EnvId::ALL {
-        bench_env(&mut c, id);
+        table.push((id, bench_env(&mut c, id)));
     }
     c.final_summary();
+    println!(
+        "\nPaired replays ({PAIRS} alternations of {STEPS} env steps, on-CPU time of the \
+         thread, medians):\n\
+         | env | env.step steps/s | raw mj_step env-steps/s | env / raw (min - max) |\n\
+         |---|---|---|---|"
+    );
+    for (id, p) in table {
+        println!(
+            "| {} | {:.0} | {:.0} | {:.1}% ({:.1} - {:.1}%) |",
+            id.name(),
+            p.env_steps_per_s,
+            p.raw_steps_per_s,
+            100.0 * p.ratio,
+            100.0 * p.ratio_min,
+            100.0 * p.ratio_max
+        );
+    }
 }
