@@ -20,9 +20,13 @@ enum Command {
     /// Support estimation: fit RND, AE or kernel PCA on a demo file; score
     /// pairs and RED's reward with a fitted model.
     Support(support::SupportArgs),
+    /// The driving scenario (paper Sec. 5.3): scripted demonstrations,
+    /// recording a person in the terminal, pictures of driven paths.
+    Drive(drive::DriveArgs),
 }
 
 mod demo;
+mod drive;
 mod support;
 
 fn main() -> anyhow::Result<()> {
@@ -30,5 +34,6 @@ fn main() -> anyhow::Result<()> {
     match cli.command {
         Command::Demo(args) => demo::run(args),
         Command::Support(args) => support::run(args),
+        Command::Drive(args) => drive::run(args),
     }
 }

@@ -1,0 +1,431 @@
+//! `red-cli drive`: the driving scenario (paper Sec. 5.3). Subcommands make
+//! scripted demonstrations, record a person driving in the terminal, and
+//! draw demonstrations as top-down pictures.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use clap::{Args, CommandFactory, Subcommand};
+use red_core::Demos;
+use red_drive::record::{KeyKind, RecordStatus};
+use red_drive::render::demo_path;
+use red_drive::{
+    CONTROL_HZ, DriveConfig, DriveKey, ENV_ID, KeyEvent, OBS_DIM, Recorder, RenderOptions,
+    expert_demos, render_png,
+};
+
+/// Arguments of `red-cli drive`.
+#[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct DriveArgs {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Option<DriveCommand>,
+}
+
+/// The subcommands of `red-cli drive`.
+#[derive(Debug, Subcommand)]
+pub enum DriveCommand {
+    /// Scripted demonstrations: an expert that knows the layout drives at
+    /// about 100 km/h around the obstacles.
+    Expert(ExpertArgs),
+    /// Drive yourself in the terminal (arrows: steer, more/less
+    /// accelerator; q, Esc or Ctrl-C: stop) and save the demonstration.
+    Record(RecordArgs),
+    /// Draw a demonstration file's paths (and lidar rays) on its road as a
+    /// PNG.
+    Render(RenderArgs),
+}
+
+/// The road: settings file and layout seed.
+#[derive(Debug, Args)]
+pub struct TrackArgs {
+    /// Settings of the scenario (JSON of `DriveConfig`; missing fields take
+    /// their defaults).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Seed of the road's layout (overrides the config's `track_seed`).
+    #[arg(long)]
+    pub track_seed: Option<u64>,
+}
+
+/// Arguments of `red-cli drive expert`.
+#[derive(Debug, Args)]
+pub struct ExpertArgs {
+    /// Demonstration file to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Number of episodes (each from its own reset seed).
+    #[arg(long, default_value_t = 1)]
+    pub episodes: usize,
+    /// Seed of the episodes' start noise.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Round every number to this many significant digits (smaller files).
+    #[arg(long)]
+    pub sig_digits: Option<usize>,
+    /// The road.
+    #[command(flatten)]
+    pub track: TrackArgs,
+}
+
+/// Arguments of `red-cli drive record`.
+#[derive(Debug, Args)]
+pub struct RecordArgs {
+    /// Demonstration file to write (on finish, quit or Ctrl-C).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Seed of the start noise.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// The road.
+    #[command(flatten)]
+    pub track: TrackArgs,
+}
+
+/// Arguments of `red-cli drive render`.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Demonstration file (made on the same road: same config and track
+    /// seed).
+    #[arg(long)]
+    pub demo: PathBuf,
+    /// PNG to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Draw the lidar rays every K steps (0: none).
+    #[arg(long, default_value_t = 20)]
+    pub lidar_every: usize,
+    /// Metres of road per picture strip.
+    #[arg(long, default_value_t = 250.0)]
+    pub strip_length: f64,
+    /// The road.
+    #[command(flatten)]
+    pub track: TrackArgs,
+}
+
+/// Runs `red-cli drive`.
+pub fn run(args: DriveArgs) -> anyhow::Result<()> {
+    match args.command {
+        Some(DriveCommand::Expert(a)) => expert(a),
+        Some(DriveCommand::Record(a)) => record(a),
+        Some(DriveCommand::Render(a)) => render(a),
+        None => {
+            let mut cmd = crate::Cli::command();
+            cmd.build();
+            let drive = cmd
+                .find_subcommand_mut("drive")
+                .context("the drive subcommand is missing")?;
+            drive.print_help()?;
+            println!();
+            Ok(())
+        }
+    }
+}
+
+fn load_config(track: &TrackArgs) -> anyhow::Result<DriveConfig> {
+    let mut config = match &track.config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading {}", path.display()))?;
+            serde_json::from_str(&text)
+                .with_context(|| format!("parsing the drive config {}", path.display()))?
+        }
+        None => DriveConfig::default(),
+    };
+    if let Some(s) = track.track_seed {
+        config.track_seed = s;
+    }
+    config.validate()?;
+    Ok(config)
+}
+
+fn round_sig(v: f64, digits: usize) -> f64 {
+    if v == 0.0 || !v.is_finite() {
+        return v;
+    }
+    format!("{v:.*e}", digits.saturating_sub(1))
+        .parse()
+        .unwrap_or(v)
+}
+
+fn expert(args: ExpertArgs) -> anyhow::Result<()> {
+    let config = load_config(&args.track)?;
+    if args.episodes == 0 {
+        bail!("--episodes must be at least 1");
+    }
+    let mut demos = expert_demos(&config, args.episodes, args.seed)?;
+    if let Some(d) = args.sig_digits {
+        if d == 0 {
+            bail!("--sig-digits must be at least 1");
+        }
+        for t in &mut demos.trajectories {
+            for row in t.observations.iter_mut().chain(t.actions.iter_mut()) {
+                for v in row.iter_mut() {
+                    *v = round_sig(*v, d);
+                }
+            }
+            if let Some(r) = &mut t.rewards {
+                for v in r.iter_mut() {
+                    *v = round_sig(*v, d);
+                }
+            }
+        }
+    }
+    demos
+        .write(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    println!(
+        "{}: {} expert episode(s) on track seed {}",
+        args.out.display(),
+        demos.trajectories.len(),
+        config.track_seed
+    );
+    summarise(&demos, &config);
+    Ok(())
+}
+
+fn summarise(demos: &Demos, config: &DriveConfig) {
+    for (i, t) in demos.trajectories.iter().enumerate() {
+        let distance: f64 = t.rewards.as_ref().map_or(0.0, |r| r.iter().sum());
+        println!(
+            "  episode {i}: {} steps ({:.1} s), {:?}, distance {distance:.1} m of {:.0} m ({:.1}%)",
+            t.actions.len(),
+            t.actions.len() as f64 / CONTROL_HZ,
+            t.end,
+            config.road_length,
+            100.0 * distance / config.road_length
+        );
+    }
+}
+
+fn render(args: RenderArgs) -> anyhow::Result<()> {
+    let config = load_config(&args.track)?;
+    let demos =
+        Demos::read(&args.demo).with_context(|| format!("reading {}", args.demo.display()))?;
+    if demos.env_id != ENV_ID || demos.obs_dim != OBS_DIM {
+        bail!(
+            "{} holds `{}` demonstrations with {} observation numbers; `drive render` needs \
+             `{ENV_ID}` ones with {OBS_DIM}",
+            args.demo.display(),
+            demos.env_id,
+            demos.obs_dim
+        );
+    }
+    const COLOURS: [[u8; 3]; 6] = [
+        [20, 90, 200],
+        [230, 130, 0],
+        [30, 150, 60],
+        [150, 50, 170],
+        [0, 160, 170],
+        [120, 80, 40],
+    ];
+    let stem = args
+        .demo
+        .file_stem()
+        .map_or_else(|| "demo".to_string(), |s| s.to_string_lossy().into_owned());
+    let mut paths = Vec::new();
+    for (i, t) in demos.trajectories.iter().enumerate() {
+        let label = if demos.trajectories.len() == 1 {
+            stem.clone()
+        } else {
+            format!("{stem} #{i}")
+        };
+        let spec = demo_path(
+            &config,
+            t,
+            label,
+            COLOURS[i % COLOURS.len()],
+            args.lidar_every,
+        )
+        .with_context(|| format!("replaying trajectory {i} of {}", args.demo.display()))?;
+        paths.push(spec);
+    }
+    let options = RenderOptions {
+        strip_length: args.strip_length,
+        ..RenderOptions::default()
+    };
+    render_png(&args.out, &config, &paths, &options)?;
+    let (w, h) = options.image_size(&config);
+    println!(
+        "{}: {w} x {h} pixels, {} path(s) on track seed {}",
+        args.out.display(),
+        paths.len(),
+        config.track_seed
+    );
+    Ok(())
+}
+
+/// Raw mode, alternate screen and hidden cursor for the recording; undone
+/// on drop, also when the recording fails.
+struct Terminal {
+    enhanced: bool,
+}
+
+impl Terminal {
+    fn enter(enhanced: bool) -> anyhow::Result<Self> {
+        use crossterm::{cursor, event, execute, terminal};
+        terminal::enable_raw_mode().context("the terminal cannot enter raw mode")?;
+        let t = Self { enhanced };
+        let mut out = std::io::stdout();
+        execute!(out, terminal::EnterAlternateScreen, cursor::Hide)?;
+        if enhanced {
+            execute!(
+                out,
+                event::PushKeyboardEnhancementFlags(
+                    event::KeyboardEnhancementFlags::REPORT_EVENT_TYPES
+                )
+            )?;
+        }
+        Ok(t)
+    }
+}
+
+impl Drop for Terminal {
+    fn drop(&mut self) {
+        use crossterm::{cursor, event, execute, terminal};
+        let mut out = std::io::stdout();
+        if self.enhanced {
+            let _ = execute!(out, event::PopKeyboardEnhancementFlags);
+        }
+        let _ = execute!(out, cursor::Show, terminal::LeaveAlternateScreen);
+        let _ = terminal::disable_raw_mode();
+    }
+}
+
+fn to_drive_key(k: &crossterm::event::KeyEvent) -> Option<KeyEvent> {
+    use crossterm::event::{KeyCode, KeyEventKind, KeyModifiers};
+    let key = match k.code {
+        KeyCode::Left => DriveKey::Left,
+        KeyCode::Right => DriveKey::Right,
+        KeyCode::Up => DriveKey::Up,
+        KeyCode::Down => DriveKey::Down,
+        KeyCode::Esc | KeyCode::Char('q') => DriveKey::Quit,
+        KeyCode::Char('c') if k.modifiers.contains(KeyModifiers::CONTROL) => DriveKey::Quit,
+        _ => return None,
+    };
+    let kind = match k.kind {
+        KeyEventKind::Press => KeyKind::Press,
+        KeyEventKind::Repeat => KeyKind::Repeat,
+        KeyEventKind::Release => KeyKind::Release,
+    };
+    Some(KeyEvent { key, kind })
+}
+
+fn draw(rec: &Recorder, banner: &str) -> anyhow::Result<()> {
+    use crossterm::{cursor::MoveTo, queue, style::Print, terminal};
+    let (w, h) = terminal::size().unwrap_or((80, 24));
+    let rows = usize::from(h).saturating_sub(3).max(5);
+    let cols = usize::from(w).clamp(5, 45);
+    let mut out = std::io::stdout();
+    for (r, line) in rec.view(rows, cols).iter().enumerate() {
+        queue!(out, MoveTo(0, r as u16), Print(line))?;
+    }
+    let status = format!("{:<w$}", rec.status_line(), w = usize::from(w));
+    let banner = format!("{banner:<w$}", w = usize::from(w));
+    queue!(
+        out,
+        MoveTo(0, rows as u16),
+        Print(&status[..status.len().min(usize::from(w))]),
+        MoveTo(0, rows as u16 + 1),
+        Print(&banner[..banner.len().min(usize::from(w))])
+    )?;
+    out.flush()?;
+    Ok(())
+}
+
+/// The 20 Hz loop: gathers key events until each tick's deadline, then
+/// steps the recorder. Returns when the episode ends or the driver quits.
+fn drive_loop(rec: &mut Recorder) -> anyhow::Result<()> {
+    use crossterm::event::{self, Event};
+    draw(
+        rec,
+        "arrows: steer / accelerator; q, Esc, Ctrl-C: stop. Press an arrow to start.",
+    )?;
+    loop {
+        if let Event::Key(k) = event::read()? {
+            match to_drive_key(&k) {
+                Some(KeyEvent {
+                    key: DriveKey::Quit,
+                    ..
+                }) => return Ok(()),
+                Some(_) => break,
+                None => {}
+            }
+        }
+    }
+    let tick = Duration::from_secs_f64(1.0 / CONTROL_HZ);
+    let mut next = Instant::now() + tick;
+    let mut events = Vec::new();
+    loop {
+        events.clear();
+        loop {
+            let left = next.saturating_duration_since(Instant::now());
+            if left.is_zero() || !event::poll(left)? {
+                break;
+            }
+            if let Event::Key(k) = event::read()?
+                && let Some(e) = to_drive_key(&k)
+            {
+                events.push(e);
+            }
+        }
+        let status = rec.tick(&events)?;
+        match status {
+            RecordStatus::Driving => draw(rec, "driving")?,
+            RecordStatus::Quit => return Ok(()),
+            RecordStatus::Ended(_) => {
+                draw(rec, "episode over: press any key")?;
+                let _ = event::read();
+                return Ok(());
+            }
+        }
+        next += tick;
+        // Fell behind (a slow terminal): do not try to catch up in a burst.
+        let now = Instant::now();
+        if next < now {
+            next = now + tick;
+        }
+    }
+}
+
+fn record(args: RecordArgs) -> anyhow::Result<()> {
+    let config = load_config(&args.track)?;
+    let enhanced = crossterm::terminal::supports_keyboard_enhancement().unwrap_or(false);
+    let mut rec = Recorder::new(&config, args.seed, enhanced)?;
+    let outcome = {
+        let _terminal = Terminal::enter(enhanced)?;
+        drive_loop(&mut rec)
+    };
+    let status = rec.status();
+    let demos = rec.finish();
+    let saved = save(&demos, &args.out);
+    outcome?;
+    saved?;
+    println!("{} ({status:?})", args.out.display());
+    summarise(&demos, &config);
+    Ok(())
+}
+
+fn save(demos: &Demos, path: &Path) -> anyhow::Result<()> {
+    if demos.trajectories.is_empty() {
+        bail!("nothing was driven; {} not written", path.display());
+    }
+    demos
+        .write(path)
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rounding_keeps_significant_digits() {
+        assert_eq!(round_sig(123.456789, 6), 123.457);
+        assert_eq!(round_sig(-0.000123456789, 3), -0.000123);
+        assert_eq!(round_sig(0.0, 6), 0.0);
+    }
+}
