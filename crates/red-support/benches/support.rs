@@ -11,9 +11,7 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use ndarray::Array2;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use red_support::{
-    KernelPcaConfig, RedReward, RndConfig, SupportEstimatorConfig, no_progress,
-};
+use red_support::{KernelPcaConfig, RedReward, RndConfig, SupportEstimatorConfig, no_progress};
 
 /// `n` random pairs of a Hopper-sized problem (11 state + 3 action numbers).
 fn pairs(n: usize, seed: u64) -> (Array2<f64>, Array2<f64>) {
@@ -34,7 +32,10 @@ fn rnd_fit(c: &mut Criterion) {
     g.bench_function("release_4000x14_200ep", |b| {
         b.iter(|| {
             let mut rng = ChaCha8Rng::seed_from_u64(2);
-            black_box(cfg.fit(s.view(), a.view(), &mut rng, &mut no_progress).unwrap())
+            black_box(
+                cfg.fit(s.view(), a.view(), &mut rng, &mut no_progress)
+                    .unwrap(),
+            )
         })
     });
     g.finish();
@@ -48,7 +49,12 @@ fn reward_inference(c: &mut Criterion) {
         ..Default::default()
     };
     let model = cfg
-        .fit(s.view(), a.view(), &mut ChaCha8Rng::seed_from_u64(2), &mut no_progress)
+        .fit(
+            s.view(),
+            a.view(),
+            &mut ChaCha8Rng::seed_from_u64(2),
+            &mut no_progress,
+        )
         .unwrap();
     let reward = RedReward::with_sigma1(model, 1000.0).unwrap();
     let mut g = c.benchmark_group("red_reward_rnd");

@@ -224,7 +224,12 @@ mod tests {
             ..Default::default()
         };
         let model = cfg
-            .fit(s.view(), a.view(), &mut ChaCha8Rng::seed_from_u64(2), &mut no_progress)
+            .fit(
+                s.view(),
+                a.view(),
+                &mut ChaCha8Rng::seed_from_u64(2),
+                &mut no_progress,
+            )
             .unwrap();
         let qs = Array2::from_shape_fn((5, 3), |_| rng.random_range(-2.0..2.0));
         let qa = Array2::from_shape_fn((5, 2), |_| rng.random_range(-2.0..2.0));
@@ -263,6 +268,11 @@ mod tests {
         assert!(e.to_string().contains("hidden"), "{e}");
         let mut c = AutoencoderConfig::default();
         c.adam.weight_decay = -1.0;
-        assert!(c.validate().unwrap_err().to_string().contains("adam.weight_decay"));
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("adam.weight_decay")
+        );
     }
 }

@@ -42,7 +42,11 @@ pub fn held_out_scores<C: SupportEstimatorConfig, R: Rng + ?Sized>(
     let mut scores = Array1::zeros(n);
     for k in 0..folds {
         let held: Vec<usize> = order.iter().copied().skip(k).step_by(folds).collect();
-        let kept: Vec<usize> = order.iter().copied().filter(|i| !held.contains(i)).collect();
+        let kept: Vec<usize> = order
+            .iter()
+            .copied()
+            .filter(|i| !held.contains(i))
+            .collect();
         let pick = |m: ArrayView2<'_, f64>, rows: &[usize]| -> Array2<f64> {
             Array2::from_shape_fn((rows.len(), m.ncols()), |(r, c)| m[[rows[r], c]])
         };
@@ -75,12 +79,17 @@ mod tests {
             ..RndConfig::default()
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-        let full = config.fit(s.view(), a.view(), &mut rng, &mut no_progress).unwrap();
+        let full = config
+            .fit(s.view(), a.view(), &mut rng, &mut no_progress)
+            .unwrap();
         let train = full.score(s.view(), a.view()).unwrap();
         let held = held_out_scores(&config, s.view(), a.view(), 5, &mut rng).unwrap();
         let q_train = calibrate_sigma1(train.as_slice().unwrap(), 0.9, 0.9).unwrap();
         let q_held = calibrate_sigma1(held.as_slice().unwrap(), 0.9, 0.9).unwrap();
-        assert!(q_held < q_train, "held-out sigma1 {q_held} vs training {q_train}");
+        assert!(
+            q_held < q_train,
+            "held-out sigma1 {q_held} vs training {q_train}"
+        );
         assert!(held.iter().all(|v| v.is_finite() && *v >= 0.0));
     }
 
@@ -89,7 +98,8 @@ mod tests {
         let s = Array2::zeros((3, 1));
         let a = Array2::zeros((3, 1));
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-        let err = held_out_scores(&RndConfig::default(), s.view(), a.view(), 4, &mut rng).unwrap_err();
+        let err =
+            held_out_scores(&RndConfig::default(), s.view(), a.view(), 4, &mut rng).unwrap_err();
         assert!(err.to_string().contains("folds"), "{err}");
     }
 }

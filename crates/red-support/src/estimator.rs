@@ -70,8 +70,11 @@ pub trait SupportModel {
     ///
     /// # Errors
     /// [`Error::ShapeMismatch`] or [`Error::NonFinite`] for a bad batch.
-    fn score(&self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>)
-    -> Result<Array1<f64>>;
+    fn score(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<Array1<f64>>;
 
     /// Scores and their gradients with respect to the actions: `n` scores
     /// and an `(n, act_dim)` matrix whose row `i` is `dL(s_i, a_i)/da_i`.

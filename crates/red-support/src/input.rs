@@ -184,8 +184,12 @@ mod tests {
 
     #[test]
     fn bad_batches_are_rejected_with_the_field() {
-        let map = InputMap::fit(Array2::zeros((2, 2)).view(), Array2::zeros((2, 1)).view(), false)
-            .unwrap();
+        let map = InputMap::fit(
+            Array2::zeros((2, 2)).view(),
+            Array2::zeros((2, 1)).view(),
+            false,
+        )
+        .unwrap();
         let e = map
             .apply(Array2::zeros((2, 3)).view(), Array2::zeros((2, 1)).view())
             .unwrap_err();

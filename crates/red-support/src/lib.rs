@@ -44,8 +44,8 @@ pub mod stats;
 pub mod terminal;
 mod train;
 
-pub use cross_val::held_out_scores;
 pub use autoencoder::{Autoencoder, AutoencoderConfig};
+pub use cross_val::held_out_scores;
 pub use error::{Error, Result};
 pub use estimator::{
     EstimatorConfig, FitProgress, FittedEstimator, SupportEstimatorConfig, SupportModel,

@@ -121,7 +121,11 @@ impl<M: SupportModel> RedReward<M> {
             Sigma1::Fixed(s) => s,
             Sigma1::Calibrated { quantile, reward } => {
                 let scores = model.score(expert_states, expert_actions)?;
-                calibrate_sigma1(scores.as_slice().unwrap_or(&scores.to_vec()), quantile, reward)?
+                calibrate_sigma1(
+                    scores.as_slice().unwrap_or(&scores.to_vec()),
+                    quantile,
+                    reward,
+                )?
             }
         };
         Ok(Self { model, sigma1 })

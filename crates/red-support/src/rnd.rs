@@ -324,7 +324,12 @@ mod tests {
                 ..small()
             };
             let model = cfg
-                .fit(s.view(), a.view(), &mut ChaCha8Rng::seed_from_u64(2), &mut no_progress)
+                .fit(
+                    s.view(),
+                    a.view(),
+                    &mut ChaCha8Rng::seed_from_u64(2),
+                    &mut no_progress,
+                )
                 .unwrap();
             let (qs, qa) = data(5, 3);
             let (sc, g) = model.score_grad_action(qs.view(), qa.view()).unwrap();

@@ -43,8 +43,13 @@ fn estimators() -> Vec<EstimatorConfig> {
 }
 
 fn fit(cfg: &EstimatorConfig, s: &Array2<f64>, a: &Array2<f64>, seed: u64) -> FittedEstimator {
-    cfg.fit(s.view(), a.view(), &mut ChaCha8Rng::seed_from_u64(seed), &mut no_progress)
-        .unwrap()
+    cfg.fit(
+        s.view(),
+        a.view(),
+        &mut ChaCha8Rng::seed_from_u64(seed),
+        &mut no_progress,
+    )
+    .unwrap()
 }
 
 #[test]
@@ -54,7 +59,8 @@ fn rewards_are_in_range_and_calibration_meets_its_rule() {
     let (os, oa) = support.outside(60, 2);
     for cfg in estimators() {
         let model = fit(&cfg, &s, &a, 3);
-        let reward = RedReward::new(model, &RedRewardConfig::default(), s.view(), a.view()).unwrap();
+        let reward =
+            RedReward::new(model, &RedRewardConfig::default(), s.view(), a.view()).unwrap();
         let r_exp = reward.reward(s.view(), a.view()).unwrap();
         let r_off = reward.reward(os.view(), oa.view()).unwrap();
         assert!(
@@ -65,9 +71,20 @@ fn rewards_are_in_range_and_calibration_meets_its_rule() {
         // The rule: the 0.9 quantile of expert scores gets reward 0.9, so at
         // least 90% of expert rewards are >= 0.9 (up to rounding).
         let share = r_exp.iter().filter(|r| **r >= 0.9 - 1e-12).count() as f64 / 120.0;
-        assert!(share >= 0.9, "{}: share of expert rewards >= 0.9 is {share}", cfg.kind());
-        assert!(share < 0.95, "{}: calibration not tight: {share}", cfg.kind());
-        let q = red_support::stats::quantile(&reward.model().score(s.view(), a.view()).unwrap().to_vec(), 0.9);
+        assert!(
+            share >= 0.9,
+            "{}: share of expert rewards >= 0.9 is {share}",
+            cfg.kind()
+        );
+        assert!(
+            share < 0.95,
+            "{}: calibration not tight: {share}",
+            cfg.kind()
+        );
+        let q = red_support::stats::quantile(
+            &reward.model().score(s.view(), a.view()).unwrap().to_vec(),
+            0.9,
+        );
         assert!(((-reward.sigma1() * q).exp() - 0.9).abs() < 1e-12);
         println!(
             "{}: sigma1 {:.4e}, mean expert reward {:.3}, mean off-support reward {:.3}",
@@ -91,11 +108,21 @@ fn same_seed_same_scores_different_seed_different_scores() {
         let m1 = fit(&cfg, &s, &a, 9);
         let m2 = fit(&cfg, &s, &a, 9);
         let s1 = m1.score(qs.view(), qa.view()).unwrap();
-        assert_eq!(s1, m2.score(qs.view(), qa.view()).unwrap(), "{}", cfg.kind());
+        assert_eq!(
+            s1,
+            m2.score(qs.view(), qa.view()).unwrap(),
+            "{}",
+            cfg.kind()
+        );
         assert_eq!(m1, m2);
         if cfg.kind() != "kpca" {
             let m3 = fit(&cfg, &s, &a, 10);
-            assert_ne!(s1, m3.score(qs.view(), qa.view()).unwrap(), "{}", cfg.kind());
+            assert_ne!(
+                s1,
+                m3.score(qs.view(), qa.view()).unwrap(),
+                "{}",
+                cfg.kind()
+            );
         }
     }
 }
@@ -123,7 +150,8 @@ fn reward_action_gradient_matches_finite_differences() {
         let eps = if cfg.kind() == "kpca" { 1e-6 } else { 1e-3 };
         let tol = if cfg.kind() == "kpca" { 1e-5 } else { 3e-2 };
         let model = fit(&cfg, &s, &a, 8);
-        let reward = RedReward::new(model, &RedRewardConfig::default(), s.view(), a.view()).unwrap();
+        let reward =
+            RedReward::new(model, &RedRewardConfig::default(), s.view(), a.view()).unwrap();
         let (r, g) = reward.reward_grad_action(qs.view(), qa.view()).unwrap();
         assert_eq!(g.dim(), (8, 2));
         let plain = reward.reward(qs.view(), qa.view()).unwrap();
@@ -174,7 +202,11 @@ fn save_load_round_trip_gives_identical_scores() {
             model.score_grad_action(qs.view(), qa.view()).unwrap()
         );
     }
-    std::fs::write(dir.path().join("bad.json"), r#"{"format": "other", "version": 1}"#).unwrap();
+    std::fs::write(
+        dir.path().join("bad.json"),
+        r#"{"format": "other", "version": 1}"#,
+    )
+    .unwrap();
     let e = FittedEstimator::load(&dir.path().join("bad.json")).unwrap_err();
     assert!(e.to_string().contains("bad.json"), "{e}");
 }
@@ -191,7 +223,11 @@ fn scoring_rejects_bad_batches() {
     assert!(e.to_string().contains("states"), "{e}");
     let mut bad = Array2::zeros((3, 1));
     bad[[0, 0]] = f64::INFINITY;
-    assert!(model.score(Array2::zeros((3, 1)).view(), bad.view()).is_err());
+    assert!(
+        model
+            .score(Array2::zeros((3, 1)).view(), bad.view())
+            .is_err()
+    );
     // Through RewardModel the error keeps its kind.
     let reward = RedReward::with_sigma1(model, 10.0).unwrap();
     assert!(matches!(
@@ -213,7 +249,12 @@ fn calibration_refuses_all_zero_expert_scores() {
         ..Default::default()
     };
     let model = cfg
-        .fit(s.view(), a.view(), &mut ChaCha8Rng::seed_from_u64(0), &mut no_progress)
+        .fit(
+            s.view(),
+            a.view(),
+            &mut ChaCha8Rng::seed_from_u64(0),
+            &mut no_progress,
+        )
         .unwrap();
     let sc = model.score(s.view(), a.view()).unwrap();
     assert!(sc.iter().all(|v| *v < 1e-6), "{sc:?}");
@@ -237,8 +278,13 @@ fn terminal_heuristic_penalises_endings_off_the_support() {
     let (os, oa) = support.outside(20, 17);
     let model = fit(&estimators()[2], &s, &a, 0);
     let reward = RedReward::new(model, &RedRewardConfig::default(), s.view(), a.view()).unwrap();
-    let h = TerminalHeuristic::new(&TerminalHeuristicConfig::default(), &reward, s.view(), a.view())
-        .unwrap();
+    let h = TerminalHeuristic::new(
+        &TerminalHeuristicConfig::default(),
+        &reward,
+        s.view(),
+        a.view(),
+    )
+    .unwrap();
     let rbar = h.expert_mean_reward();
     assert!(rbar > 0.85 && rbar <= 1.0, "mean expert reward {rbar}");
     // Expert pairs end on the support: no penalty. Off-support pairs far
@@ -247,6 +293,12 @@ fn terminal_heuristic_penalises_endings_off_the_support() {
         assert_eq!(h.penalty(r), 0.0);
     }
     let r_off = reward.reward(os.view(), oa.view()).unwrap();
-    let penalised = r_off.iter().filter(|r| h.penalty(**r) == -10.0 * rbar).count();
-    assert!(penalised >= 15, "only {penalised} of 20 off-support endings penalised");
+    let penalised = r_off
+        .iter()
+        .filter(|r| h.penalty(**r) == -10.0 * rbar)
+        .count();
+    assert!(
+        penalised >= 15,
+        "only {penalised} of 20 off-support endings penalised"
+    );
 }

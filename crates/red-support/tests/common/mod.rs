@@ -74,7 +74,9 @@ const SEG_B: [f64; 10] = [1.0, -0.3, 0.6, -0.4, 0.2, 0.1, 0.5, -0.6, -0.2, 0.9];
 /// direction orthogonal to it.
 fn segment_in(rng: &mut ChaCha8Rng) -> Vec<f64> {
     let t = rng.random_range(0.0..1.0);
-    (0..10).map(|j| SEG_A[j] + t * (SEG_B[j] - SEG_A[j])).collect()
+    (0..10)
+        .map(|j| SEG_A[j] + t * (SEG_B[j] - SEG_A[j]))
+        .collect()
 }
 
 fn segment_off(rng: &mut ChaCha8Rng) -> Vec<f64> {
