@@ -4,7 +4,8 @@
 use std::path::PathBuf;
 
 use red_core::import::{
-    baselines_npz_from_bytes, read_baselines_npz, read_red_pickle, red_pickle_from_bytes,
+    NpzLayout, baselines_npz_from_bytes, read_baselines_npz, read_baselines_npz_with_layout,
+    read_red_pickle, red_pickle_from_bytes,
 };
 use red_core::{Demos, EpisodeEnd, Error};
 
@@ -164,7 +165,9 @@ fn truncated_pickle_reports_its_offset() {
 #[test]
 fn baselines_npz_per_episode_layout() {
     let want = &expected()["episodes"];
-    let d = read_baselines_npz(&fixture("baselines_episodes.npz"), "Toy-v0", 4).unwrap();
+    let (d, layout) =
+        read_baselines_npz_with_layout(&fixture("baselines_episodes.npz"), "Toy-v0", 4).unwrap();
+    assert_eq!(layout, NpzLayout::PerEpisode);
     assert_eq!((d.obs_dim, d.act_dim), (3, 2));
     assert_eq!(d.lengths(), vec![4, 4]);
     assert_eq!(all_obs(&d), rows(&want["observations"]));
@@ -199,7 +202,9 @@ fn baselines_npz_per_episode_layout() {
 #[test]
 fn baselines_npz_flat_layout_deflated_with_lens() {
     let want = &expected()["flat"];
-    let d = read_baselines_npz(&fixture("baselines_flat.npz"), "Toy-v0", 5).unwrap();
+    let (d, layout) =
+        read_baselines_npz_with_layout(&fixture("baselines_flat.npz"), "Toy-v0", 5).unwrap();
+    assert_eq!(layout, NpzLayout::FlatByLens);
     assert_eq!((d.obs_dim, d.act_dim), (3, 1));
     assert_eq!(d.lengths(), vec![5, 3]);
     assert_eq!(all_obs(&d), rows(&want["observations"]));
@@ -217,11 +222,38 @@ fn baselines_npz_flat_layout_deflated_with_lens() {
 #[test]
 fn baselines_npz_ragged_object_arrays() {
     let want = &expected()["ragged"];
-    let d = read_baselines_npz(&fixture("baselines_ragged.npz"), "Toy-v0", 4).unwrap();
+    let (d, layout) =
+        read_baselines_npz_with_layout(&fixture("baselines_ragged.npz"), "Toy-v0", 4).unwrap();
+    assert_eq!(layout, NpzLayout::Ragged);
     assert_eq!(d.lengths(), vec![4, 2]);
     assert_eq!(all_obs(&d), rows(&want["observations"]));
     assert_eq!(all_acts(&d), rows(&want["actions"]));
     assert!(d.trajectories.iter().all(|t| t.rewards.is_none()));
+}
+
+#[test]
+fn baselines_npz_flat_without_lens_assumes_equal_episodes() {
+    let want = &expected()["flat_no_lens"];
+    let (d, layout) =
+        read_baselines_npz_with_layout(&fixture("baselines_flat_no_lens.npz"), "Toy-v0", 1000)
+            .unwrap();
+    assert_eq!(layout, NpzLayout::FlatByEpisodeCount);
+    assert!(layout.to_string().contains("assumed"));
+    assert_eq!(d.lengths(), vec![3, 3]);
+    assert_eq!(all_obs(&d), rows(&want["observations"]));
+    assert_eq!(all_acts(&d), rows(&want["actions"]));
+}
+
+#[test]
+fn baselines_returns_must_match_rewards() {
+    let e = read_baselines_npz(&fixture("baselines_bad_rets.npz"), "Toy-v0", 1000)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("baselines_bad_rets.npz: trajectory 1:"), "{e}");
+    assert!(
+        e.contains("`rews` sum to 5.5 but `ep_rets` says 6.5"),
+        "{e}"
+    );
 }
 
 #[test]

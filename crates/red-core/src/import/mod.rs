@@ -202,6 +202,59 @@ pub fn baselines_npz_from_bytes(
     env_id: &str,
     max_episode_steps: usize,
 ) -> Result<Demos> {
+    baselines_npz_with_layout(bytes, env_id, max_episode_steps).map(|(d, _)| d)
+}
+
+/// How the arrays of a baselines `.npz` were laid out (see
+/// [`baselines_npz_from_bytes`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NpzLayout {
+    /// `obs` `(n_traj, T, obs_dim)`: episodes of equal length.
+    PerEpisode,
+    /// `obs` `(N, obs_dim)`, cut into episodes by `lens`.
+    FlatByLens,
+    /// `obs` `(N, obs_dim)`, cut into `len(ep_rets)` episodes of equal
+    /// length (an assumption: the file does not say where episodes end).
+    FlatByEpisodeCount,
+    /// Object arrays of one `(T_i, obs_dim)` array per episode.
+    Ragged,
+}
+
+impl std::fmt::Display for NpzLayout {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            NpzLayout::PerEpisode => "per episode: obs (n_traj, T, obs_dim)",
+            NpzLayout::FlatByLens => "flat: obs (N, obs_dim) cut by `lens`",
+            NpzLayout::FlatByEpisodeCount => {
+                "flat: obs (N, obs_dim) cut into len(ep_rets) equal episodes (assumed)"
+            }
+            NpzLayout::Ragged => "ragged: object arrays of (T_i, obs_dim) episodes",
+        })
+    }
+}
+
+/// Reads a baselines `.npz` from `path` and says which layout it had.
+///
+/// # Errors
+/// As [`read_baselines_npz`].
+pub fn read_baselines_npz_with_layout(
+    path: &Path,
+    env_id: &str,
+    max_episode_steps: usize,
+) -> Result<(Demos, NpzLayout)> {
+    let bytes = read_bytes(path)?;
+    baselines_npz_with_layout(&bytes, env_id, max_episode_steps).map_err(|e| e.with_path(path))
+}
+
+/// [`baselines_npz_from_bytes`], also saying which layout the file had.
+///
+/// # Errors
+/// As [`baselines_npz_from_bytes`].
+pub fn baselines_npz_with_layout(
+    bytes: &[u8],
+    env_id: &str,
+    max_episode_steps: usize,
+) -> Result<(Demos, NpzLayout)> {
     let e = |r: String| err(None, None, r);
     let entries = zip::read_entries(bytes).map_err(|r| e(format!("not a readable .npz: {r}")))?;
     let mut arrays: Vec<(String, Npy)> = Vec::new();
@@ -260,6 +313,12 @@ pub fn baselines_npz_from_bytes(
         }
     };
     let obs = classify("obs", obs, 2)?;
+    let layout = match obs {
+        Arr::PerEpisode(_) => NpzLayout::PerEpisode,
+        Arr::Ragged(_) => NpzLayout::Ragged,
+        Arr::Flat(_) if lens_hint.is_some() => NpzLayout::FlatByLens,
+        Arr::Flat(_) => NpzLayout::FlatByEpisodeCount,
+    };
     let (obs_dim, lengths) = match &obs {
         Arr::PerEpisode(a) => (a.shape[2], vec![a.shape[1]; a.shape[0]]),
         Arr::Ragged(items) => {
@@ -376,7 +435,7 @@ pub fn baselines_npz_from_bytes(
         });
     }
     demos.validate()?;
-    Ok(demos)
+    Ok((demos, layout))
 }
 
 /// Reads `a` in the layout of `obs`, with the length of its rows (1 when
