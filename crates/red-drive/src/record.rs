@@ -274,7 +274,9 @@ pub fn ascii_view(env: &DriveEnv, rows: usize, cols: usize) -> Vec<String> {
     let line_cols: Vec<usize> = (1..crate::config::NUM_LANES)
         .map(|k| {
             let y = c.lane_center(k) - 0.5 * c.lane_width;
-            ((hw - y) / col_w - 0.5).round().clamp(0.0, (inner - 1) as f64) as usize
+            ((hw - y) / col_w - 0.5)
+                .round()
+                .clamp(0.0, (inner - 1) as f64) as usize
         })
         .collect();
     let mut out = Vec::with_capacity(rows);

@@ -165,7 +165,11 @@ fn lidar_ranges_match_the_true_distances() {
     // The two middle rays hit the obstacle's rear face, x = o.x - 2.25.
     for i in [NUM_RAYS / 2 - 1, NUM_RAYS / 2] {
         let want = (gap - 0.5 * c.car_length) / angles[i].cos();
-        assert!((ranges[i] - want).abs() < 2e-3, "ray {i}: {} vs {want}", ranges[i]);
+        assert!(
+            (ranges[i] - want).abs() < 2e-3,
+            "ray {i}: {} vs {want}",
+            ranges[i]
+        );
         assert!((obs[i] - want / c.lidar_range).abs() < 2e-5);
     }
     // The outermost rays point at the walls, straight sideways.
@@ -188,7 +192,11 @@ fn lidar_ranges_match_the_true_distances() {
         speed: 0.0,
     })
     .unwrap();
-    assert!(env.lidar_ranges().iter().all(|r| (*r - c.lidar_range).abs() < 1e-3));
+    assert!(
+        env.lidar_ranges()
+            .iter()
+            .all(|r| (*r - c.lidar_range).abs() < 1e-3)
+    );
 }
 
 #[test]
@@ -326,4 +334,21 @@ fn rendered_png_has_the_expected_size() {
     assert_eq!(size, options.image_size(&c));
     assert_eq!(size.0, 1600);
     assert!(size.1 > 200 && size.1 < 800, "{size:?}");
+}
+
+#[test]
+fn shipped_demo_reads_and_replays_to_the_end_of_the_default_road() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data/drive-scripted-expert.json");
+    let demos = Demos::read(&path).unwrap();
+    assert_eq!(demos.env_id, "drive");
+    assert_eq!(demos.trajectories.len(), 1);
+    assert!(std::fs::metadata(&path).unwrap().len() < 1_000_000);
+    let t = &demos.trajectories[0];
+    let ret: f64 = t.rewards.as_ref().unwrap().iter().sum();
+    assert!((ret - 1000.0).abs() < 1e-2, "{ret}");
+    // Numbers rounded to 6 digits still retrace the expert's drive.
+    let (poses, end) = red_drive::render::replay(&DriveConfig::default(), t).unwrap();
+    assert_eq!(end, red_drive::PathEnd::Success);
+    assert_eq!(poses.len(), t.actions.len() + 1);
 }
