@@ -415,3 +415,24 @@ fn print_messages() {
         println!("{}", rejected(&t));
     }
 }
+
+#[test]
+fn concurrent_writers_leave_one_whole_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("shared.json");
+    std::thread::scope(|s| {
+        for k in 0..8 {
+            let path = &path;
+            s.spawn(move || {
+                let mut d = awkward();
+                d.env_id = format!("writer-{k}");
+                for _ in 0..5 {
+                    d.write(path).unwrap();
+                }
+            });
+        }
+    });
+    let back = Demos::read(&path).unwrap();
+    assert!(back.env_id.starts_with("writer-"));
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
