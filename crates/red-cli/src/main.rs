@@ -23,10 +23,13 @@ enum Command {
     /// The driving scenario (paper Sec. 5.3): scripted demonstrations,
     /// recording a person in the terminal, pictures of driven paths.
     Drive(drive::DriveArgs),
+    /// The MuJoCo environments (Gymnasium -v5): check the set-up.
+    Mujoco(mujoco::MujocoArgs),
 }
 
 mod demo;
 mod drive;
+mod mujoco;
 mod support;
 
 fn main() -> anyhow::Result<()> {
@@ -35,5 +38,6 @@ fn main() -> anyhow::Result<()> {
         Command::Demo(args) => demo::run(args),
         Command::Support(args) => support::run(args),
         Command::Drive(args) => drive::run(args),
+        Command::Mujoco(args) => mujoco::run(args),
     }
 }
