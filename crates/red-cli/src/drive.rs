@@ -428,4 +428,60 @@ mod tests {
         assert_eq!(round_sig(-0.000123456789, 3), -0.000123);
         assert_eq!(round_sig(0.0, 6), 0.0);
     }
+
+    #[test]
+    fn expert_then_render_writes_a_demo_and_a_picture() {
+        let dir = std::env::temp_dir().join(format!("red-cli-drive-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let demo = dir.join("expert.json");
+        let png = dir.join("expert.png");
+        let track = || TrackArgs {
+            config: None,
+            track_seed: Some(5),
+        };
+        expert(ExpertArgs {
+            out: demo.clone(),
+            episodes: 2,
+            seed: 1,
+            sig_digits: Some(6),
+            track: track(),
+        })
+        .unwrap();
+        let demos = Demos::read(&demo).unwrap();
+        assert_eq!(demos.trajectories.len(), 2);
+        assert_eq!(demos.control_hz, Some(CONTROL_HZ));
+        render(RenderArgs {
+            demo: demo.clone(),
+            out: png.clone(),
+            lidar_every: 50,
+            strip_length: 500.0,
+            track: track(),
+        })
+        .unwrap();
+        let options = RenderOptions {
+            strip_length: 500.0,
+            ..RenderOptions::default()
+        };
+        let config = DriveConfig {
+            track_seed: 5,
+            ..DriveConfig::default()
+        };
+        assert_eq!(
+            red_drive::render::png_size(&png).unwrap(),
+            options.image_size(&config)
+        );
+        // The same file on another track does not replay.
+        let err = render(RenderArgs {
+            demo,
+            out: png,
+            lidar_every: 0,
+            strip_length: 500.0,
+            track: TrackArgs {
+                config: None,
+                track_seed: Some(6),
+            },
+        });
+        let _ = std::fs::remove_dir_all(&dir);
+        assert!(format!("{:#}", err.unwrap_err()).contains("track"));
+    }
 }

@@ -115,10 +115,14 @@ impl RenderOptions {
 /// back from its first observation, and returns the car's states (one more
 /// than the actions) and how the replay ended. With a demonstration made on
 /// this track the replay retraces it; numbers rounded in the file can make
-/// it drift slightly.
+/// it drift slightly, so the check against the recorded lidar allows a few
+/// mismatching steps.
 ///
 /// # Errors
-/// [`Error::Replay`] for an empty trajectory or one of another scenario.
+/// [`Error::Replay`] for an empty trajectory, one of another scenario, or
+/// one that does not retrace on this track: the replay ends before the
+/// recording, or does not end where the recording terminated, or more than
+/// 5% of the replayed lidar readings differ from the recorded ones.
 pub fn replay(config: &DriveConfig, trajectory: &Trajectory) -> Result<(Vec<CarState>, PathEnd)> {
     let first = trajectory
         .observations
@@ -126,12 +130,25 @@ pub fn replay(config: &DriveConfig, trajectory: &Trajectory) -> Result<(Vec<CarS
         .ok_or_else(|| Error::Replay {
             reason: "the trajectory is empty".into(),
         })?;
+    let other_track = "was it recorded with another --track-seed or config?";
     let mut env = DriveEnv::new(config)?;
-    env.reset_to(CarState::from_first_observation(config, first)?)?;
+    let mut obs = env.reset_to(CarState::from_first_observation(config, first)?)?;
     let mut poses = vec![*env.car()];
     let mut end = PathEnd::Stopped;
-    for a in &trajectory.actions {
+    let mut mismatched = 0usize;
+    let n = trajectory.actions.len();
+    for (t, a) in trajectory.actions.iter().enumerate() {
+        if let Some(rec) = trajectory.observations.get(t)
+            && rec
+                .iter()
+                .zip(&obs)
+                .take(NUM_RAYS)
+                .any(|(r, o)| (r - o).abs() > 0.01)
+        {
+            mismatched += 1;
+        }
         let step = red_core::Env::step(&mut env, a)?;
+        obs = step.observation;
         poses.push(*env.car());
         if step.terminated {
             end = if step.info.get(INFO_SUCCESS) == Some(1.0) {
@@ -141,16 +158,31 @@ pub fn replay(config: &DriveConfig, trajectory: &Trajectory) -> Result<(Vec<CarS
             } else {
                 PathEnd::Stopped
             };
+            if t + 1 < n {
+                return Err(Error::Replay {
+                    reason: format!(
+                        "the replay ended ({end:?}) at step {t} but the demonstration goes on \
+                         to step {}; {other_track}",
+                        n - 1
+                    ),
+                });
+            }
             break;
         }
     }
     if end == PathEnd::Stopped && trajectory.end == EpisodeEnd::Terminated {
-        // The file says the episode terminated but the replay did not:
-        // the recording was made on another track or config.
         return Err(Error::Replay {
-            reason: "the demonstration terminated but its replay on this track did not; \
-                     was it recorded with another --track-seed or config?"
-                .into(),
+            reason: format!(
+                "the demonstration terminated but its replay on this track did not; {other_track}"
+            ),
+        });
+    }
+    if mismatched * 20 > n {
+        return Err(Error::Replay {
+            reason: format!(
+                "the lidar readings of {mismatched} of {n} steps differ from the recorded ones; \
+                 {other_track}"
+            ),
         });
     }
     Ok((poses, end))

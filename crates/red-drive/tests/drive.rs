@@ -243,7 +243,9 @@ fn expert_completes_at_least_99_of_100_layouts() {
     let results = expert_success(&DriveConfig::default(), 0..100).unwrap();
     let done = results.iter().filter(|(_, e)| e.success).count();
     let failed: Vec<_> = results.iter().filter(|(_, e)| !e.success).collect();
-    eprintln!("expert completed {done}/100 layouts; failures: {failed:?}");
+    let steps = results.iter().map(|(_, e)| e.steps);
+    let (lo, hi) = (steps.clone().min().unwrap(), steps.max().unwrap());
+    eprintln!("expert completed {done}/100 layouts in {lo}..={hi} steps; failures: {failed:?}");
     assert!(done >= 99, "expert completed {done}/100: {failed:?}");
     for (_, e) in &results {
         if e.success {
