@@ -436,3 +436,38 @@ fn concurrent_writers_leave_one_whole_file() {
     assert!(back.env_id.starts_with("writer-"));
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
+
+#[test]
+#[ignore = "timing, run with --release -- --ignored --nocapture"]
+fn large_file_timing() {
+    // 50 episodes of 2000 steps of the driving task's size (24 + 2 numbers).
+    let mut d = Demos::new("drive", 24, 2, Some(20.0));
+    for e in 0..50 {
+        d.trajectories.push(Trajectory {
+            observations: (0..2000)
+                .map(|t| {
+                    (0..24)
+                        .map(|j| ((e * 2000 + t) * 24 + j) as f64 * 1e-3)
+                        .collect()
+                })
+                .collect(),
+            actions: (0..2000).map(|t| vec![(t as f64).sin(), 0.5]).collect(),
+            rewards: Some(vec![1.0; 2000]),
+            end: EpisodeEnd::Truncated,
+        });
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("big.json");
+    let t = std::time::Instant::now();
+    d.write(&path).unwrap();
+    let w = t.elapsed();
+    let t = std::time::Instant::now();
+    let back = Demos::read(&path).unwrap();
+    let r = t.elapsed();
+    assert_eq!(back, d);
+    let mb = std::fs::metadata(&path).unwrap().len() as f64 / 1e6;
+    println!(
+        "{mb:.1} MB, {} pairs: write {w:?}, read+validate {r:?}",
+        d.num_pairs()
+    );
+}
