@@ -361,3 +361,33 @@ fn python2_style_red_pickles_decode() {
         vec![vec![0.25], vec![-0.75], vec![1.0]]
     );
 }
+
+#[test]
+fn arrays_of_empty_rows_are_refused_without_allocating() {
+    // observations of shape (10**12, 0): no data, a trillion rows claimed.
+    let mut p = vec![0x80, 2, b'}', b'(', b'U', 12];
+    p.extend(b"observations");
+    // _reconstruct() (no arguments needed here), then BUILD with
+    // (1, shape, dtype(typestr), False, b"").
+    let arr = |p: &mut Vec<u8>, shape: &[u64], typestr: &str| {
+        p.extend(b"cnumpy.core.multiarray\n_reconstruct\n)R(K\x01(");
+        for &d in shape {
+            p.push(0x8a);
+            p.push(8);
+            p.extend(d.to_le_bytes());
+        }
+        p.extend(b"tcnumpy\ndtype\nU");
+        p.push(typestr.len() as u8);
+        p.extend(typestr.as_bytes());
+        p.extend(b"\x85R\x89C\x00tb");
+    };
+    arr(&mut p, &[1_000_000_000_000, 0], "f8");
+    p.extend([b'U', 7]);
+    p.extend(b"actions");
+    arr(&mut p, &[1_000_000_000_000, 1, 0], "f4");
+    p.extend([b'u', b'.']);
+    let e = red_pickle_from_bytes(&p, "x", 1000)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("rows of no numbers"), "{e}");
+}

@@ -126,6 +126,13 @@ pub fn red_pickle_from_bytes(bytes: &[u8], env_id: &str, traj_len: usize) -> Res
     if n == 0 {
         return Err(e("`observations` has no rows".into()));
     }
+    // Rows of no numbers would let a tiny file claim billions of steps.
+    if obs_dim == 0 || act_dim == 0 {
+        return Err(e(format!(
+            "rows of no numbers: observations {:?}, actions {:?}",
+            obs.shape, acs.shape
+        )));
+    }
     if n % traj_len != 0 {
         return Err(e(format!(
             "{n} rows are not a whole number of trajectories of {traj_len} steps \
@@ -313,6 +320,14 @@ pub fn baselines_npz_with_layout(
         }
     };
     let obs = classify("obs", obs, 2)?;
+    // Rows of no numbers would let a tiny file claim billions of steps.
+    let empty_rows = match &obs {
+        Arr::PerEpisode(a) | Arr::Flat(a) => a.shape.last() == Some(&0),
+        Arr::Ragged(items) => items.iter().any(|it| it.shape.get(1) == Some(&0)),
+    };
+    if empty_rows {
+        return Err(e("`obs` has rows of 0 numbers".into()));
+    }
     let layout = match obs {
         Arr::PerEpisode(_) => NpzLayout::PerEpisode,
         Arr::Ragged(_) => NpzLayout::Ragged,
@@ -349,10 +364,10 @@ pub fn baselines_npz_with_layout(
             let n = a.shape[0];
             let lengths = match (&lens_hint, &ep_rets) {
                 (Some(l), _) => {
-                    if l.iter().sum::<usize>() != n {
+                    let total = l.iter().try_fold(0usize, |acc, &t| acc.checked_add(t));
+                    if total != Some(n) {
                         return Err(e(format!(
-                            "`lens` sums to {}, but flat `obs` has {n} rows",
-                            l.iter().sum::<usize>()
+                            "`lens` {l:?} does not add up to the {n} rows of flat `obs`"
                         )));
                     }
                     l.clone()
@@ -378,8 +393,12 @@ pub fn baselines_npz_with_layout(
     if lengths.is_empty() {
         return Err(e("`obs` holds no episodes".into()));
     }
+
     let obs_rows = episode_rows("obs", &obs, &lengths, Some(obs_dim))?;
     let (acs_arr, act_dim) = like_obs("acs", acs, &obs)?;
+    if act_dim == 0 {
+        return Err(e("`acs` has rows of 0 numbers".into()));
+    }
     let acs_rows = episode_rows("acs", &acs_arr, &lengths, Some(act_dim))?;
     let rews_rows = match take("rews") {
         None => None,

@@ -65,7 +65,8 @@ impl Dtype {
         let size: usize = if rest.len() == 1 && kind == b'O' {
             8
         } else {
-            rest[1..].parse().map_err(|_| bad())?
+            // `get` rather than indexing: the kind may be a multi-byte char.
+            rest.get(1..).and_then(|d| d.parse().ok()).ok_or_else(bad)?
         };
         let ok = match kind {
             b'f' => matches!(size, 4 | 8),
@@ -889,6 +890,8 @@ mod tests {
         assert!(Dtype::parse("c16").is_err());
         assert!(Dtype::parse("f3").is_err());
         assert!(Dtype::parse("").is_err());
+        assert!(Dtype::parse("\u{e9}8").is_err());
+        assert!(Dtype::parse(">\u{e9}").is_err());
     }
 
     #[test]
