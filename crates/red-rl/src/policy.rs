@@ -610,12 +610,6 @@ impl GaussianPolicy {
         Ok(())
     }
 
-    /// Draws one standard normal number (exposed so callers sample noise
-    /// from the same distribution as the policy).
-    pub fn standard_normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
-        rng.sample(StandardNormal)
-    }
-
     /// The policy as JSON (with a format header).
     ///
     /// # Errors
