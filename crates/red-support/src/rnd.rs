@@ -161,19 +161,87 @@ impl Rnd {
     /// Scores of input rows already mapped, `(b, d)` f32.
     fn score_rows(&self, x: ArrayView2<'_, f32>) -> Array1<f64> {
         let mut out = Array1::<f64>::zeros(x.nrows());
-        let (mut wt, mut wp) = (Workspace::new(), Workspace::new());
-        for pair in &self.pairs {
-            let t = pair.target.forward(x, &mut wt);
-            let p = pair.predictor.forward(x, &mut wp);
-            let k = t.ncols() as f64;
-            for ((o, tr), pr) in out.iter_mut().zip(t.rows()).zip(p.rows()) {
-                let s: f32 = tr.iter().zip(pr).map(|(a, b)| (b - a) * (b - a)).sum();
-                *o += f64::from(s) / k;
+        if x.nrows() <= ROWWISE_MAX_BATCH {
+            let mut bufs = RowBuffers::default();
+            for (o, row) in out.iter_mut().zip(x.rows()) {
+                let row = row.to_vec();
+                for pair in &self.pairs {
+                    let t = forward_row(pair.target.as_mlp(), &row, &mut bufs).to_vec();
+                    let p = forward_row(&pair.predictor, &row, &mut bufs);
+                    let s: f32 = t.iter().zip(p).map(|(a, b)| (b - a) * (b - a)).sum();
+                    *o += f64::from(s) / t.len() as f64;
+                }
+            }
+        } else {
+            let (mut wt, mut wp) = (Workspace::new(), Workspace::new());
+            for pair in &self.pairs {
+                let t = pair.target.forward(x, &mut wt);
+                let p = pair.predictor.forward(x, &mut wp);
+                let k = t.ncols() as f64;
+                for ((o, tr), pr) in out.iter_mut().zip(t.rows()).zip(p.rows()) {
+                    let s: f32 = tr.iter().zip(pr).map(|(a, b)| (b - a) * (b - a)).sum();
+                    *o += f64::from(s) / k;
+                }
             }
         }
         out /= self.pairs.len() as f64;
         out
     }
+}
+
+/// Batches up to this size are scored one row at a time by
+/// [`forward_row`]: for a single pair (a reward per environment step) a
+/// matrix-vector loop beats a general matrix product, whose packing of each
+/// weight matrix costs more than the arithmetic (measured in
+/// `cargo bench -p red-support -- red_reward`).
+pub(crate) const ROWWISE_MAX_BATCH: usize = 4;
+
+/// Scratch buffers for [`forward_row`].
+#[derive(Default)]
+pub(crate) struct RowBuffers {
+    a: Vec<f32>,
+    b: Vec<f32>,
+}
+
+/// The output of `net` for one input row, computed layer by layer as
+/// `act(x W + b)` with `W` of shape `(in, out)` walked row by row (each row
+/// of `W` is contiguous, so the inner loop vectorises). Returns a slice
+/// into `bufs`.
+pub(crate) fn forward_row<'b>(net: &Mlp, x: &[f32], bufs: &'b mut RowBuffers) -> &'b [f32] {
+    let layers = net.layers();
+    let cfg = net.config();
+    bufs.a.clear();
+    bufs.a.extend_from_slice(x);
+    for (i, layer) in layers.iter().enumerate() {
+        let act = if i + 1 == layers.len() {
+            cfg.output_activation
+        } else {
+            cfg.activation
+        };
+        bufs.b.clear();
+        bufs.b.extend(layer.b.iter());
+        for (xi, wrow) in bufs.a.iter().zip(layer.w.rows()) {
+            match wrow.as_slice() {
+                Some(w) => {
+                    for (o, wv) in bufs.b.iter_mut().zip(w) {
+                        *o += xi * wv;
+                    }
+                }
+                None => {
+                    for (o, wv) in bufs.b.iter_mut().zip(wrow.iter()) {
+                        *o += xi * wv;
+                    }
+                }
+            }
+        }
+        if act != Activation::Identity {
+            for v in bufs.b.iter_mut() {
+                *v = act.apply(*v);
+            }
+        }
+        std::mem::swap(&mut bufs.a, &mut bufs.b);
+    }
+    &bufs.a
 }
 
 impl SupportModel for Rnd {
@@ -356,6 +424,35 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    #[test]
+    fn row_by_row_scores_match_batched_scores() {
+        let (s, a) = data(64, 4);
+        let model = small()
+            .fit(
+                s.view(),
+                a.view(),
+                &mut ChaCha8Rng::seed_from_u64(5),
+                &mut no_progress,
+            )
+            .unwrap();
+        let (qs, qa) = data(20, 6);
+        let batched = model.score(qs.view(), qa.view()).unwrap();
+        for i in 0..20 {
+            let one = model
+                .score(
+                    qs.slice(ndarray::s![i..i + 1, ..]),
+                    qa.slice(ndarray::s![i..i + 1, ..]),
+                )
+                .unwrap();
+            assert!(
+                (one[0] - batched[i]).abs() <= 1e-5 * batched[i].abs().max(1e-9),
+                "row {i}: {} vs {}",
+                one[0],
+                batched[i]
+            );
         }
     }
 
