@@ -391,3 +391,49 @@ fn arrays_of_empty_rows_are_refused_without_allocating() {
         .to_string();
     assert!(e.contains("rows of no numbers"), "{e}");
 }
+
+#[test]
+#[ignore = "random mutation fuzzing, run with --release -- --ignored"]
+fn fuzz_importers_with_random_mutations() {
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let files = [
+        "red_p2.pkl",
+        "red_p4.pkl",
+        "red_p5.pkl",
+        "baselines_episodes.npz",
+        "baselines_flat.npz",
+        "baselines_ragged.npz",
+    ];
+    let mut decoded = 0;
+    for name in files {
+        let base = std::fs::read(fixture(name)).unwrap();
+        for _ in 0..20_000 {
+            let mut v = base.clone();
+            for _ in 0..rng.random_range(1..6) {
+                let i = rng.random_range(0..v.len());
+                match rng.random_range(0..4) {
+                    0 => v[i] = rng.random(),
+                    1 => v.insert(i, rng.random()),
+                    2 => {
+                        v.remove(i);
+                    }
+                    _ => v[i] = [0x00, 0xff, 0x7f, 0x80][rng.random_range(0..4)],
+                }
+            }
+            let r = if name.ends_with(".pkl") {
+                red_pickle_from_bytes(&v, "x", 5)
+            } else {
+                baselines_npz_from_bytes(&v, "x", 1000)
+            };
+            if let Ok(d) = r {
+                d.validate().unwrap();
+                decoded += 1;
+            }
+        }
+    }
+    println!(
+        "{decoded} of {} mutants decoded to valid sets",
+        files.len() * 20_000
+    );
+}
