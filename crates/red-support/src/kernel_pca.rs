@@ -9,7 +9,10 @@
 //! `W = U_m Λ_m^{-1/2}`,
 //!
 //! where `(K_x)_i = k(x_i, x)`. `W` (`n x m`) is computed once at fit time,
-//! so a score costs `O(n d + n m)`, never a solve.
+//! so a score costs `O(n d + n m)`, never a solve. The eigenpairs come from
+//! nalgebra's dense `SymmetricEigen` (exact, all of them) or, above 1500
+//! pairs by default, from block Lanczos for the leading ones only (see
+//! [`Eigensolver`]).
 //!
 //! The regularised variant (Tikhonov, `lambda > 0`) replaces `K_m^+` by
 //! `(K + n λ I)^{-1}` on the same `m` directions, the empirical form of
@@ -339,10 +342,11 @@ impl SupportEstimatorConfig for KernelPcaConfig {
         KernelPcaConfig::validate(self)
     }
 
-    /// Fits by the exact eigendecomposition of the `n x n` kernel matrix
-    /// (nalgebra's `SymmetricEigen`, `O(n^3)`); `rng` is not used (the fit
-    /// is deterministic). Progress counts four stages: kernel, eigen,
-    /// (regularised solve), done.
+    /// Fits by the eigendecomposition of the `n x n` kernel matrix (see
+    /// [`Eigensolver`]: dense and exact, or block Krylov for the leading
+    /// pairs); `rng` is not used (the fit is deterministic). Progress counts
+    /// three stages: kernel matrix, eigenpairs, projection (with the
+    /// regularised solve).
     fn fit<R: Rng + ?Sized>(
         &self,
         states: ArrayView2<'_, f64>,
