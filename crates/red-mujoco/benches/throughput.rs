@@ -144,16 +144,29 @@ fn median(mut x: Vec<f64>) -> f64 {
     }
 }
 
+/// Each timed sample lasts at least this long, so that the coarse
+/// accounting of on-CPU time (updated at scheduler ticks) stays small.
+const MIN_SAMPLE_SECONDS: f64 = 0.2;
+
 fn paired(env: &mut TimedEnv, sim: &mut Simulation, rec: &Recording) -> Paired {
+    let t = Instant::now();
+    replay_raw(sim, rec);
+    let reps = (MIN_SAMPLE_SECONDS / t.elapsed().as_secs_f64())
+        .ceil()
+        .max(1.0) as usize;
     let (mut env_t, mut raw_t, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
     let origin = Instant::now();
     for _ in 0..PAIRS {
         let t = busy_seconds(origin);
-        replay_env(env, rec);
-        let e = busy_seconds(origin) - t;
+        for _ in 0..reps {
+            replay_env(env, rec);
+        }
+        let e = (busy_seconds(origin) - t) / reps as f64;
         let t = busy_seconds(origin);
-        replay_raw(sim, rec);
-        let r = busy_seconds(origin) - t;
+        for _ in 0..reps {
+            replay_raw(sim, rec);
+        }
+        let r = (busy_seconds(origin) - t) / reps as f64;
         env_t.push(e);
         raw_t.push(r);
         ratios.push(r / e);
@@ -219,8 +232,8 @@ fn main() {
         return;
     }
     println!(
-        "\nPaired replays ({PAIRS} alternations of {STEPS} env steps, on-CPU time of the \
-         thread, medians):\n\
+        "\nPaired replays ({PAIRS} alternations, each at least {MIN_SAMPLE_SECONDS} s of \
+         {STEPS}-step replays; on-CPU time of the thread; medians):\n\
          | env | env.step steps/s | raw mj_step env-steps/s | env / raw (min - max) |\n\
          |---|---|---|---|"
     );

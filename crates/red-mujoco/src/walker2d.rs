@@ -12,8 +12,9 @@ use crate::{Result, Simulation};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Walker2dConfig {
-    /// Model file in the assets folder (`walker2d_v5.xml`: both feet with the same
-    /// friction, as in `-v5`).
+    /// Model file in the assets folder (`walker2d_v5.xml`: both feet with
+    /// friction 1.9, where the older `walker2d.xml` gives the right foot
+    /// 0.9).
     pub xml_file: String,
     /// Physics steps per environment step (4; 0.008 s per step).
     pub frame_skip: usize,
