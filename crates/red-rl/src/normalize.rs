@@ -177,6 +177,36 @@ impl ObsNormalizer {
         Ok(out)
     }
 
+    /// Chains a gradient with respect to normalised observations
+    /// (`d_norm`, `(n, dim)`, for example what a network's backward pass
+    /// returns) back to the raw observations `raw` (`(n, dim)`): divided by
+    /// the standard deviation, and 0 where the clip was active.
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] if the shapes differ or have the wrong
+    /// number of columns.
+    pub fn backward(
+        &self,
+        raw: ArrayView2<'_, f64>,
+        d_norm: ArrayView2<'_, f32>,
+    ) -> Result<Array2<f64>> {
+        if raw.dim() != d_norm.dim() || raw.ncols() != self.dim() {
+            return Err(Error::ShapeMismatch {
+                what: "normaliser backward".into(),
+                expected: format!("two arrays of (n, {})", self.dim()),
+                got: format!("{:?} and {:?}", raw.dim(), d_norm.dim()),
+            });
+        }
+        let mut out = Array2::zeros(raw.raw_dim());
+        for ((i, j), o) in out.indexed_iter_mut() {
+            let z = (raw[[i, j]] - self.mean[j]) / self.std(j);
+            if z.abs() < self.clip {
+                *o = d_norm[[i, j]] as f64 / self.std(j);
+            }
+        }
+        Ok(out)
+    }
+
     #[inline]
     fn normalize_value(&self, j: usize, v: f64) -> f64 {
         ((v - self.mean[j]) / self.std(j)).clamp(-self.clip, self.clip)
@@ -273,6 +303,37 @@ mod tests {
         let mut out = [0.0f32; 2];
         n.normalize_into(&[1.2, 4.0], &mut out).unwrap();
         assert!((out[0] - 2.0).abs() < 1e-5 && out[1].abs() < 1e-6);
+    }
+
+    #[test]
+    fn backward_matches_finite_differences() {
+        let n = ObsNormalizer::from_data(array![[0.0, 1.0], [2.0, 5.0]].view(), 1.2, 0.1).unwrap();
+        // Second entry of the second row is clipped (z = 2.5 > 1.2).
+        let raw = array![[0.5, 2.0], [1.5, 8.0]];
+        let w = array![[1.0f32, -2.0], [0.5, 3.0]];
+        let f = |x: &Array2<f64>| -> f64 {
+            let z = n.normalize_batch(x.view()).unwrap();
+            z.iter()
+                .zip(w.iter())
+                .map(|(a, b)| (*a as f64) * (*b as f64))
+                .sum()
+        };
+        let g = n.backward(raw.view(), w.view()).unwrap();
+        for i in 0..2 {
+            for j in 0..2 {
+                let mut p = raw.clone();
+                p[[i, j]] += 1e-3;
+                let mut m = raw.clone();
+                m[[i, j]] -= 1e-3;
+                let fd = (f(&p) - f(&m)) / 2e-3;
+                assert!(
+                    (fd - g[[i, j]]).abs() < 1e-3,
+                    "({i},{j}): {fd} vs {}",
+                    g[[i, j]]
+                );
+            }
+        }
+        assert_eq!(g[[1, 1]], 0.0);
     }
 
     #[test]

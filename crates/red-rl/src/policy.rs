@@ -472,6 +472,33 @@ impl GaussianPolicy {
         self.net.backward(tape, g.view(), grads)
     }
 
+    /// Chains `d_input` (`(n, obs_dim)`, a gradient with respect to the
+    /// network's input as [`GaussianPolicy::backward`] returns) back to the
+    /// raw observations `raw_obs` through the policy's normaliser (identity
+    /// without one).
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] if the shapes differ.
+    pub fn input_grad_to_raw(
+        &self,
+        raw_obs: ArrayView2<'_, f64>,
+        d_input: ArrayView2<'_, f32>,
+    ) -> Result<Array2<f64>> {
+        match &self.normalizer {
+            Some(n) => n.backward(raw_obs, d_input),
+            None => {
+                if raw_obs.dim() != d_input.dim() {
+                    return Err(Error::ShapeMismatch {
+                        what: "input gradient".into(),
+                        expected: format!("{:?}", raw_obs.dim()),
+                        got: format!("{:?}", d_input.dim()),
+                    });
+                }
+                Ok(d_input.mapv(|v| v as f64))
+            }
+        }
+    }
+
     /// Reparameterised sampling of a batch: `a = mu + sigma * eps` with
     /// `eps ~ N(0, I)` drawn from `rng`. Returns `(actions, eps)`, each
     /// `(n, act_dim)`; keep `eps` for [`GaussianPolicy::backward_reparam`].
@@ -493,7 +520,9 @@ impl GaussianPolicy {
     /// the reparameterised sample `a = mu + sigma * eps` of the batch on
     /// `tape`: `d mu = d_action`, `d log_sigma = d_action * sigma * eps`.
     /// Accumulates parameter gradients into `grads` and returns `d loss / d
-    /// input` `(n, obs_dim)`, the path through the action (SVG(1) needs both).
+    /// input` `(n, obs_dim)` (the normalised input: chain it to raw observations
+    /// with [`GaussianPolicy::input_grad_to_raw`]), the path through the
+    /// action (SVG(1) needs both).
     pub fn backward_reparam(
         &self,
         tape: &Tape,
