@@ -427,6 +427,18 @@ fn describe(ev: &Event) -> String {
     }
 }
 
+/// Where two vectors first differ, in words (`[3]: 0.5 vs 0.25`).
+fn first_difference(a: &[f64], b: &[f64]) -> String {
+    if a.len() != b.len() {
+        return format!(": lengths {} vs {}", a.len(), b.len());
+    }
+    a.iter()
+        .zip(b)
+        .position(|(x, y)| x.to_bits() != y.to_bits())
+        .map(|j| format!("[{j}]: {} vs {}", a[j], b[j]))
+        .unwrap_or_default()
+}
+
 fn compare(first: &[Event], second: &[Event]) -> Result<()> {
     let mut step = 0usize;
     for (i, (a, b)) in first.iter().zip(second).enumerate() {
@@ -442,9 +454,9 @@ fn compare(first: &[Event], second: &[Event]) -> Result<()> {
                 },
             ) => {
                 if !same_numbers(oa, ob) {
-                    Some("reset observation")
+                    Some(format!("reset observation{}", first_difference(oa, ob)))
                 } else if !same_info(ia, ib) {
-                    Some("reset info")
+                    Some("reset info".to_string())
                 } else {
                     None
                 }
@@ -452,23 +464,26 @@ fn compare(first: &[Event], second: &[Event]) -> Result<()> {
             (Event::Step { step: sa, .. }, Event::Step { step: sb, .. })
             | (Event::AfterEnd(sa), Event::AfterEnd(sb)) => {
                 if !same_numbers(&sa.observation, &sb.observation) {
-                    Some("observation")
+                    Some(format!(
+                        "observation{}",
+                        first_difference(&sa.observation, &sb.observation)
+                    ))
                 } else if sa.reward.to_bits() != sb.reward.to_bits() {
-                    Some("reward")
+                    Some(format!("reward: {} vs {}", sa.reward, sb.reward))
                 } else if sa.terminated != sb.terminated || sa.truncated != sb.truncated {
-                    Some("terminated/truncated flags")
+                    Some("terminated/truncated flags".to_string())
                 } else if !same_info(&sa.info, &sb.info) {
-                    Some("info")
+                    Some("info".to_string())
                 } else {
                     None
                 }
             }
-            _ => Some("sequence of resets and steps"),
+            _ => Some("sequence of resets and steps".to_string()),
         };
         if let Some(what) = what {
             return Err(fail(format!(
-                "determinism: two runs from the same seed differ in the {what} at event {i} \
-                 (step {step}): run 1 {}; run 2 {}",
+                "determinism: two runs from the same seed differ at event {i} (step {step}) in \
+                 the {what}; run 1 {}; run 2 {}",
                 describe(a),
                 describe(b)
             )));
