@@ -191,6 +191,7 @@ fn check_parity(
     perturb: &Perturb,
 ) -> Option<(usize, usize, usize)> {
     let python = oracle_python()?;
+    WORST.with(|w| w.set(0.0));
     let ours = run_ours(env, seed, perturb);
     let theirs = run_oracle(&python, gym_id, &kwargs, &ours);
     let theirs = theirs["episodes"].as_array().expect("episodes");
@@ -359,6 +360,84 @@ fn non_default_options_match_gymnasium() {
         }),
         &mut env,
         17,
+        &|_, _| {},
+    );
+}
+
+#[test]
+fn non_default_options_of_the_other_envs_match_gymnasium() {
+    let mut cheetah = HalfCheetah::new(HalfCheetahConfig {
+        forward_reward_weight: 2.0,
+        ctrl_cost_weight: 0.3,
+        exclude_current_positions_from_observation: false,
+        ..HalfCheetahConfig::default()
+    })
+    .unwrap();
+    check_parity(
+        "HalfCheetah-v5",
+        json!({
+            "forward_reward_weight": 2.0,
+            "ctrl_cost_weight": 0.3,
+            "exclude_current_positions_from_observation": false,
+        }),
+        &mut cheetah,
+        19,
+        &|_, _| {},
+    );
+
+    let mut walker = Walker2d::new(Walker2dConfig {
+        healthy_z_range: [0.9, 1.5],
+        healthy_angle_range: [-0.5, 0.5],
+        healthy_reward: 2.0,
+        ..Walker2dConfig::default()
+    })
+    .unwrap();
+    check_parity(
+        "Walker2d-v5",
+        json!({
+            "healthy_z_range": [0.9, 1.5],
+            "healthy_angle_range": [-0.5, 0.5],
+            "healthy_reward": 2.0,
+        }),
+        &mut walker,
+        20,
+        &|_, _| {},
+    );
+
+    let mut ant = Ant::new(AntConfig {
+        exclude_current_positions_from_observation: false,
+        include_cfrc_ext_in_observation: true,
+        contact_force_range: [-0.5, 2.0],
+        contact_cost_weight: 1e-2,
+        healthy_z_range: [0.3, 0.9],
+        ..AntConfig::default()
+    })
+    .unwrap();
+    check_parity(
+        "Ant-v5",
+        json!({
+            "exclude_current_positions_from_observation": false,
+            "include_cfrc_ext_in_observation": true,
+            "contact_force_range": [-0.5, 2.0],
+            "contact_cost_weight": 1e-2,
+            "healthy_z_range": [0.3, 0.9],
+        }),
+        &mut ant,
+        21,
+        &|_, _| {},
+    );
+
+    let mut reacher = Reacher::new(ReacherConfig {
+        reward_dist_weight: 0.5,
+        reward_control_weight: 3.0,
+        ..ReacherConfig::default()
+    })
+    .unwrap();
+    check_parity(
+        "Reacher-v5",
+        json!({"reward_dist_weight": 0.5, "reward_control_weight": 3.0}),
+        &mut reacher,
+        22,
         &|_, _| {},
     );
 }
