@@ -24,8 +24,15 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
+//! One default differs from Gymnasium's: [`Ant`] leaves the contact forces
+//! out of its observation (27 numbers, as `Ant-v4`);
+//! [`AntConfig::include_cfrc_ext_in_observation`] gives Gymnasium's `Ant-v5`
+//! default of 105. Actions outside the bounds are accepted, as in Gymnasium
+//! (MuJoCo clamps the control; the control cost uses the raw action).
+//!
 //! Every environment is checked step by step against Gymnasium itself by
-//! `tests/gymnasium_parity.rs`.
+//! `tests/gymnasium_parity.rs` (it needs the oracle virtualenv that
+//! `scripts/setup-mujoco.sh` creates; `RED_SKIP_PARITY=1` skips it).
 
 pub mod assets;
 mod common;
