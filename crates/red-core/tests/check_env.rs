@@ -310,29 +310,3 @@ fn discrete_action_spaces_are_checked_too() {
         "{err}"
     );
 }
-
-#[test]
-#[ignore = "prints the failure messages for reading"]
-fn print_failures() {
-    for f in [
-        Faults {
-            nondeterministic: true,
-            ..Faults::default()
-        },
-        Faults {
-            nan_at: Some(7),
-            ..Faults::default()
-        },
-        Faults {
-            out_of_bounds_at: Some(4),
-            ..Faults::default()
-        },
-        Faults {
-            accept_bad_actions: true,
-            ..Faults::default()
-        },
-    ] {
-        println!("{}\n", failure(f));
-    }
-    println!("{}", check(Faults::default()).unwrap());
-}
