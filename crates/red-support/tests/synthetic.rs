@@ -40,6 +40,7 @@ fn every_estimator_separates_every_support() {
         let (s, a) = support.inside(N_TRAIN, 100 + si as u64);
         let (hs, ha) = support.inside(N_TEST, 200 + si as u64);
         let (os, oa) = support.outside(N_TEST, 300 + si as u64);
+        let (ns, na) = support.near(N_TEST, 600 + si as u64);
         for cfg in estimators() {
             let mut rng = ChaCha8Rng::seed_from_u64(7);
             let model = cfg
@@ -59,10 +60,30 @@ fn every_estimator_separates_every_support() {
             if auc.is_nan() || auc < 0.95 {
                 failures.push(format!("{} {}: AUC {auc:.4}", support.name, cfg.kind()));
             }
+            // Harder: off-support points close to the support. Reported,
+            // and held to a lower bar.
+            let near = model.score(ns.view(), na.view()).unwrap();
+            let auc_near = roc_auc(&inside.to_vec(), &near.to_vec());
+            println!(
+                "AUC {:<12} {:<5} near the support {auc_near:.4}",
+                support.name,
+                cfg.kind()
+            );
+            if auc_near.is_nan() || auc_near < NEAR_AUC_BOUND {
+                failures.push(format!(
+                    "{} {}: near AUC {auc_near:.4}",
+                    support.name,
+                    cfg.kind()
+                ));
+            }
         }
     }
     assert!(failures.is_empty(), "AUC below 0.95: {failures:?}");
 }
+
+/// Lower bound on the AUC against points near the support (measured
+/// 0.944 to 1.0; see BENCHMARKS.md).
+const NEAR_AUC_BOUND: f64 = 0.85;
 
 fn median(v: &Array1<f64>) -> f64 {
     red_support::stats::quantile(&v.to_vec(), 0.5)

@@ -15,6 +15,7 @@ pub struct Support {
     pub obs_dim: usize,
     sample_in: fn(&mut ChaCha8Rng) -> Vec<f64>,
     sample_off: fn(&mut ChaCha8Rng) -> Vec<f64>,
+    sample_near: fn(&mut ChaCha8Rng) -> Vec<f64>,
 }
 
 impl Support {
@@ -26,6 +27,11 @@ impl Support {
     /// `n` off-support rows, split into states and actions.
     pub fn outside(&self, n: usize, seed: u64) -> (Array2<f64>, Array2<f64>) {
         self.draw(n, seed, self.sample_off)
+    }
+
+    /// `n` off-support rows close to the support (a harder test).
+    pub fn near(&self, n: usize, seed: u64) -> (Array2<f64>, Array2<f64>) {
+        self.draw(n, seed, self.sample_near)
     }
 
     fn draw(
@@ -66,6 +72,18 @@ fn circle_off(rng: &mut ChaCha8Rng) -> Vec<f64> {
     }
 }
 
+/// Near the circle: radius in [0.85, 0.9] or [1.1, 1.15].
+fn circle_near(rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let t = rng.random_range(0.0..std::f64::consts::TAU);
+    let off = rng.random_range(0.1..0.15);
+    let r = if rng.random_range(0.0..1.0) < 0.5 {
+        1.0 - off
+    } else {
+        1.0 + off
+    };
+    vec![r * t.cos(), r * t.sin()]
+}
+
 const SEG_A: [f64; 10] = [-1.0, 0.5, 0.0, 0.3, -0.2, 0.8, -0.5, 0.1, 0.4, -0.7];
 const SEG_B: [f64; 10] = [1.0, -0.3, 0.6, -0.4, 0.2, 0.1, 0.5, -0.6, -0.2, 0.9];
 
@@ -80,6 +98,15 @@ fn segment_in(rng: &mut ChaCha8Rng) -> Vec<f64> {
 }
 
 fn segment_off(rng: &mut ChaCha8Rng) -> Vec<f64> {
+    segment_moved(rng, 0.4)
+}
+
+/// Near the segment: moved 0.15 away (the segment is about 2.9 long).
+fn segment_near(rng: &mut ChaCha8Rng) -> Vec<f64> {
+    segment_moved(rng, 0.15)
+}
+
+fn segment_moved(rng: &mut ChaCha8Rng, dist: f64) -> Vec<f64> {
     let t = rng.random_range(-0.3..1.3);
     let dir: Vec<f64> = (0..10).map(|j| SEG_B[j] - SEG_A[j]).collect();
     let dn = dir.iter().map(|v| v * v).sum::<f64>().sqrt();
@@ -90,7 +117,7 @@ fn segment_off(rng: &mut ChaCha8Rng) -> Vec<f64> {
     }
     let vn = v.iter().map(|x| x * x).sum::<f64>().sqrt();
     (0..10)
-        .map(|j| SEG_A[j] + t * dir[j] + 0.4 * v[j] / vn)
+        .map(|j| SEG_A[j] + t * dir[j] + dist * v[j] / vn)
         .collect()
 }
 
@@ -126,6 +153,16 @@ fn clusters_off(rng: &mut ChaCha8Rng) -> Vec<f64> {
     }
 }
 
+/// Near the clusters: 0.2 to 0.3 from a centre (4 cluster standard
+/// deviations and more).
+fn clusters_near(rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let c = CENTRES[rng.random_range(0..CENTRES.len())];
+    let v: Vec<f64> = (0..4).map(|_| normal(rng)).collect();
+    let vn = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let r = rng.random_range(0.2..0.3);
+    c.iter().zip(&v).map(|(ci, vi)| ci + r * vi / vn).collect()
+}
+
 /// The three supports.
 pub fn supports() -> [Support; 3] {
     [
@@ -134,18 +171,21 @@ pub fn supports() -> [Support; 3] {
             obs_dim: 1,
             sample_in: circle_in,
             sample_off: circle_off,
+            sample_near: circle_near,
         },
         Support {
             name: "segment-10d",
             obs_dim: 8,
             sample_in: segment_in,
             sample_off: segment_off,
+            sample_near: segment_near,
         },
         Support {
             name: "clusters-4d",
             obs_dim: 3,
             sample_in: clusters_in,
             sample_off: clusters_off,
+            sample_near: clusters_near,
         },
     ]
 }
