@@ -13,7 +13,7 @@ caller compares only up to where its own side terminated). Prints one JSON
 object on stdout:
 
     {"versions": {...},
-     "episodes": [{"obs": [...], "steps": [{"obs": [...], "reward": r,
+     "episodes": [{"obs": [...], "reset_info": {...}, "steps": [{"obs": [...], "reward": r,
                    "terminated": b, "info": {...}}, ...]}, ...]}
 
 Non-finite numbers are written as null. Run it with the oracle virtualenv
@@ -49,7 +49,8 @@ def main():
         qpos = np.array(episode["qpos"], dtype=np.float64)
         qvel = np.array(episode["qvel"], dtype=np.float64)
         env.set_state(qpos, qvel)
-        record = {"obs": vector(env._get_obs()), "steps": []}
+        reset_info = {k: number(v) for k, v in env._get_reset_info().items() if np.ndim(v) == 0}
+        record = {"obs": vector(env._get_obs()), "reset_info": reset_info, "steps": []}
         for action in episode["actions"]:
             obs, reward, terminated, truncated, info = env.step(np.array(action, dtype=np.float64))
             record["steps"].append(

@@ -61,13 +61,17 @@ struct Episode {
     qpos: Vec<f64>,
     qvel: Vec<f64>,
     reset_obs: Vec<f64>,
+    /// The info of our `reset` (positions only, so a perturbed velocity
+    /// does not change it).
+    reset_info: red_core::Info,
     actions: Vec<Vec<f64>>,
     steps: Vec<red_core::Step>,
 }
 
-/// Changes a reset state before the episode starts (to reach states that
-/// random actions rarely reach).
-type Perturb = dyn Fn(&mut [f64], &mut [f64]);
+/// Changes the velocities of a reset state before the episode starts (to
+/// reach states that random actions rarely reach). Positions stay, so our
+/// reset info still describes the state.
+type Perturb = dyn Fn(&mut [f64]);
 
 fn run_ours(env: &mut dyn MujocoEnv, seed: u64, perturb: &Perturb) -> Vec<Episode> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -75,15 +79,16 @@ fn run_ours(env: &mut dyn MujocoEnv, seed: u64, perturb: &Perturb) -> Vec<Episod
     let mut episodes = Vec::new();
     let mut total = 0;
     while total < TOTAL_STEPS {
-        env.reset(Some(seed + episodes.len() as u64)).unwrap();
-        let mut qpos = env.simulation().qpos().to_vec();
+        let (_, reset_info) = env.reset(Some(seed + episodes.len() as u64)).unwrap();
+        let qpos = env.simulation().qpos().to_vec();
         let mut qvel = env.simulation().qvel().to_vec();
-        perturb(&mut qpos, &mut qvel);
+        perturb(&mut qvel);
         let reset_obs = env.set_state(&qpos, &qvel).unwrap();
         let mut episode = Episode {
             qpos,
             qvel,
             reset_obs,
+            reset_info,
             actions: Vec::new(),
             steps: Vec::new(),
         };
@@ -181,6 +186,26 @@ fn compare_vec(what: &str, ours: &[f64], theirs: &Value, problems: &mut Vec<Stri
     }
 }
 
+fn compare_info(what: &str, ours: &red_core::Info, theirs: &Value, problems: &mut Vec<String>) {
+    let theirs = theirs.as_object().expect("oracle info");
+    let mut our_keys: Vec<&str> = ours.iter().map(|(k, _)| k).collect();
+    let mut their_keys: Vec<&str> = theirs.keys().map(String::as_str).collect();
+    our_keys.sort_unstable();
+    their_keys.sort_unstable();
+    if our_keys != their_keys {
+        problems.push(format!(
+            "{what} keys: ours {our_keys:?}, Gymnasium {their_keys:?}"
+        ));
+    }
+    for (key, value) in ours.iter() {
+        if let Some(tv) = theirs.get(key)
+            && !close(value, tv)
+        {
+            problems.push(format!("{what} {key}: ours {value:e}, Gymnasium {tv}"));
+        }
+    }
+}
+
 /// Runs one environment on both sides and compares; returns (episodes,
 /// terminations, steps) compared.
 fn check_parity(
@@ -206,6 +231,12 @@ fn check_parity(
             &t["obs"],
             &mut problems,
         );
+        compare_info(
+            &format!("episode {e} reset info"),
+            &o.reset_info,
+            &t["reset_info"],
+            &mut problems,
+        );
         let t_steps = t["steps"].as_array().expect("steps");
         assert_eq!(o.steps.len(), t_steps.len());
         for (k, (os, ts)) in o.steps.iter().zip(t_steps).enumerate() {
@@ -228,24 +259,7 @@ fn check_parity(
                     os.terminated, ts["terminated"]
                 ));
             }
-            let t_info = ts["info"].as_object().expect("info");
-            let our_keys: Vec<&str> = os.info.iter().map(|(k, _)| k).collect();
-            let mut their_keys: Vec<&str> = t_info.keys().map(String::as_str).collect();
-            let mut sorted_ours = our_keys.clone();
-            sorted_ours.sort_unstable();
-            their_keys.sort_unstable();
-            if sorted_ours != their_keys {
-                problems.push(format!(
-                    "{at} info keys: ours {sorted_ours:?}, Gymnasium {their_keys:?}"
-                ));
-            }
-            for (key, value) in os.info.iter() {
-                if let Some(tv) = t_info.get(key)
-                    && !close(value, tv)
-                {
-                    problems.push(format!("{at} info {key}: ours {value:e}, Gymnasium {tv}"));
-                }
-            }
+            compare_info(&format!("{at} info"), &os.info, &ts["info"], &mut problems);
             steps += 1;
             terminations += usize::from(os.terminated);
         }
@@ -269,8 +283,7 @@ fn check_parity(
 #[test]
 fn hopper_matches_gymnasium() {
     let mut env = Hopper::new(HopperConfig::default()).unwrap();
-    if let Some((_, terminations, _)) =
-        check_parity("Hopper-v5", json!({}), &mut env, 11, &|_, _| {})
+    if let Some((_, terminations, _)) = check_parity("Hopper-v5", json!({}), &mut env, 11, &|_| {})
     {
         assert!(terminations > 0, "no termination was compared");
     }
@@ -279,14 +292,14 @@ fn hopper_matches_gymnasium() {
 #[test]
 fn half_cheetah_matches_gymnasium() {
     let mut env = HalfCheetah::new(HalfCheetahConfig::default()).unwrap();
-    check_parity("HalfCheetah-v5", json!({}), &mut env, 12, &|_, _| {});
+    check_parity("HalfCheetah-v5", json!({}), &mut env, 12, &|_| {});
 }
 
 #[test]
 fn walker2d_matches_gymnasium() {
     let mut env = Walker2d::new(Walker2dConfig::default()).unwrap();
     if let Some((_, terminations, _)) =
-        check_parity("Walker2d-v5", json!({}), &mut env, 13, &|_, _| {})
+        check_parity("Walker2d-v5", json!({}), &mut env, 13, &|_| {})
     {
         assert!(terminations > 0, "no termination was compared");
     }
@@ -301,7 +314,7 @@ fn ant_without_contact_forces_matches_gymnasium() {
         json!({"include_cfrc_ext_in_observation": false}),
         &mut env,
         14,
-        &|_, _| {},
+        &|_| {},
     );
 }
 
@@ -313,7 +326,7 @@ fn ant_with_contact_forces_matches_gymnasium() {
     })
     .unwrap();
     assert_eq!(env.observation_space().dim(), 105);
-    check_parity("Ant-v5", json!({}), &mut env, 15, &|_, _| {});
+    check_parity("Ant-v5", json!({}), &mut env, 15, &|_| {});
 }
 
 #[test]
@@ -321,7 +334,7 @@ fn ant_terminations_match_gymnasium() {
     // Thrown upwards, the torso leaves the healthy range [0.2, 1] in a few
     // steps: every episode here terminates.
     let mut env = Ant::new(AntConfig::default()).unwrap();
-    let throw = |_: &mut [f64], qvel: &mut [f64]| qvel[2] += 4.0;
+    let throw = |qvel: &mut [f64]| qvel[2] += 4.0;
     if let Some((episodes, terminations, _)) = check_parity(
         "Ant-v5",
         json!({"include_cfrc_ext_in_observation": false}),
@@ -336,7 +349,7 @@ fn ant_terminations_match_gymnasium() {
 #[test]
 fn reacher_matches_gymnasium() {
     let mut env = Reacher::new(ReacherConfig::default()).unwrap();
-    check_parity("Reacher-v5", json!({}), &mut env, 16, &|_, _| {});
+    check_parity("Reacher-v5", json!({}), &mut env, 16, &|_| {});
 }
 
 #[test]
@@ -360,7 +373,7 @@ fn non_default_options_match_gymnasium() {
         }),
         &mut env,
         17,
-        &|_, _| {},
+        &|_| {},
     );
 }
 
@@ -382,7 +395,7 @@ fn non_default_options_of_the_other_envs_match_gymnasium() {
         }),
         &mut cheetah,
         19,
-        &|_, _| {},
+        &|_| {},
     );
 
     let mut walker = Walker2d::new(Walker2dConfig {
@@ -401,7 +414,7 @@ fn non_default_options_of_the_other_envs_match_gymnasium() {
         }),
         &mut walker,
         20,
-        &|_, _| {},
+        &|_| {},
     );
 
     let mut ant = Ant::new(AntConfig {
@@ -424,7 +437,7 @@ fn non_default_options_of_the_other_envs_match_gymnasium() {
         }),
         &mut ant,
         21,
-        &|_, _| {},
+        &|_| {},
     );
 
     let mut reacher = Reacher::new(ReacherConfig {
@@ -438,6 +451,6 @@ fn non_default_options_of_the_other_envs_match_gymnasium() {
         json!({"reward_dist_weight": 0.5, "reward_control_weight": 3.0}),
         &mut reacher,
         22,
-        &|_, _| {},
+        &|_| {},
     );
 }
