@@ -193,7 +193,9 @@ impl Rnd {
 /// [`forward_row`]: for a single pair (a reward per environment step) a
 /// matrix-vector loop beats a general matrix product, whose packing of each
 /// weight matrix costs more than the arithmetic (measured in
-/// `cargo bench -p red-support -- red_reward`).
+/// `cargo bench -p red-support -- red_reward`). The two paths sum in a
+/// different order, so a pair's score may differ between them by f32
+/// rounding (a test bounds it at 1e-5 relative).
 pub(crate) const ROWWISE_MAX_BATCH: usize = 4;
 
 /// Scratch buffers for [`forward_row`].
