@@ -38,9 +38,12 @@ fn repo_root() -> PathBuf {
 /// The oracle's Python, or `None` when the parity tests are skipped.
 fn oracle_python() -> Option<PathBuf> {
     if std::env::var("RED_SKIP_PARITY").is_ok_and(|v| v == "1") {
-        eprintln!(
-            "\n*** RED_SKIP_PARITY=1: SKIPPING the Gymnasium parity test of red-mujoco. ***\n\
-             *** Nothing was compared against Gymnasium.                             ***\n"
+        // Written to the stream itself, past the test harness's capture of
+        // `eprintln!`, so that the skip shows in every test log.
+        let _ = writeln!(
+            std::io::stderr(),
+            "\n*** RED_SKIP_PARITY=1: SKIPPING a Gymnasium parity test of red-mujoco. ***\n\
+             *** Nothing was compared against Gymnasium.                            ***\n"
         );
         return None;
     }
