@@ -102,7 +102,7 @@ fn main() {
     time("    Adam step (18,560 parameters)", 32, 5000, || {
         adam.step(&mut predictor, &grads).unwrap();
     });
-    for batch in [32usize, 1024] {
+    for batch in [1usize, 32, 1024] {
         let x = data.slice(s![..batch, ..]);
         time(
             &format!("(b) rnd target forward, batch {batch}"),
@@ -117,6 +117,15 @@ fn main() {
         let config = MlpConfig::new(11, &[100, 100], 3).with_activation(act);
         let policy = Mlp::new(&config, &mut rng).unwrap();
         let x = Array2::from_shape_simple_fn((1024, 11), || rng.random_range(-2.0f32..2.0));
+        let x1 = x.slice(s![..1, ..]);
+        time(
+            &format!("    2 x 100 {act:?} policy forward, batch 1"),
+            1,
+            20_000,
+            || {
+                black_box(policy.forward(x1, &mut ws)[[0, 0]]);
+            },
+        );
         time(
             &format!("(c) 2 x 100 {act:?} policy forward, batch 1024"),
             1024,

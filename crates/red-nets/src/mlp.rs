@@ -99,6 +99,32 @@ fn ensure_shape(buf: &mut Array2<f32>, rows: usize, cols: usize) {
     }
 }
 
+/// Batches up to this size skip the general matrix product: matrixmultiply
+/// packs the whole weight matrix on every call, which for a single row
+/// costs about as much as the product itself.
+const SMALL_BATCH: usize = 3;
+
+/// `out = x w` (`x`: `(batch, in)`, `w`: `(in, out)`, contiguous). Small
+/// batches use row-times-matrix as a sum of scaled weight rows (a contiguous,
+/// vectorisable loop); larger ones the packed general product.
+fn affine_product(x: ArrayView2<'_, f32>, w: &Array2<f32>, out: &mut Array2<f32>) {
+    if x.nrows() > SMALL_BATCH {
+        general_mat_mul(1.0, &x, w, 0.0, out);
+        return;
+    }
+    let width = w.ncols();
+    let w = w.as_slice().expect("weights are contiguous");
+    for (xr, mut orow) in x.rows().into_iter().zip(out.rows_mut()) {
+        let o = orow.as_slice_mut().expect("layer buffers are contiguous");
+        o.fill(0.0);
+        for (&xi, wrow) in xr.iter().zip(w.chunks_exact(width)) {
+            for (oj, &wj) in o.iter_mut().zip(wrow) {
+                *oj += xi * wj;
+            }
+        }
+    }
+}
+
 /// `out = act(out + b)` row by row, in one pass; the match sits outside the
 /// loops so each inner loop is a plain, vectorisable slice loop.
 fn bias_act(out: &mut Array2<f32>, b: &Array1<f32>, act: Activation) {
@@ -252,6 +278,11 @@ impl Mlp {
     /// returned as a view of shape `(batch, output)` into `ws`.
     ///
     /// Allocates nothing once `ws` has seen this batch size with this network.
+    /// Batches of up to 3 rows take a row-by-row path (several times faster
+    /// for one row than the packed matrix product); a row's output can then
+    /// differ in the last bits from the same row inside a larger batch,
+    /// because the products are summed in another order. The same batch
+    /// size always gives the same numbers.
     ///
     /// # Panics
     /// When `x` does not have `input_dim()` columns ([`Mlp::check_input`]
@@ -270,9 +301,9 @@ impl Mlp {
             let out = &mut rest[0];
             ensure_shape(out, batch, layer.w.ncols());
             if i == 0 {
-                general_mat_mul(1.0, &x, &layer.w, 0.0, out);
+                affine_product(x, &layer.w, out);
             } else {
-                general_mat_mul(1.0, &prev[i - 1], &layer.w, 0.0, out);
+                affine_product(prev[i - 1].view(), &layer.w, out);
             }
             bias_act(out, &layer.b, self.act_of(i));
         }
@@ -310,7 +341,7 @@ impl Mlp {
             let (prev, rest) = tape.acts.split_at_mut(i + 1);
             let out = &mut rest[0];
             ensure_shape(out, batch, layer.w.ncols());
-            general_mat_mul(1.0, &prev[i], &layer.w, 0.0, out);
+            affine_product(prev[i].view(), &layer.w, out);
             bias_act(out, &layer.b, self.act_of(i));
         }
         tape.acts[n].view()

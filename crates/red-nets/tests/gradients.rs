@@ -342,12 +342,25 @@ fn forward_tape_forward_and_predict_agree() {
     let wide = ndarray::concatenate![ndarray::Axis(1), x, random_matrix(&mut rng, 7, 2)];
     let view = wide.slice(ndarray::s![.., ..4]);
     assert_eq!(net.forward(view, &mut ws).to_owned(), a);
-    // Another batch size through the same workspace.
-    let small = x.slice(ndarray::s![..2, ..]);
-    assert_eq!(
-        net.forward(small, &mut ws).to_owned(),
-        a.slice(ndarray::s![..2, ..])
-    );
+    // Smaller batches through the same workspace, on both sides of the
+    // small-batch path (rows may differ from the big batch in the last bits:
+    // the products are summed in another order).
+    for rows in [1usize, 2, 3, 4, 5] {
+        let small = x.slice(ndarray::s![..rows, ..]);
+        let got = net.forward(small, &mut ws).to_owned();
+        assert_eq!(got.dim(), (rows, 3));
+        for (p, q) in got.iter().zip(a.slice(ndarray::s![..rows, ..]).iter()) {
+            assert!(
+                (p - q).abs() <= 1e-5 * (1.0 + q.abs()),
+                "batch {rows}: {p} vs {q}"
+            );
+        }
+        let mut tape = Tape::new();
+        assert_eq!(net.forward_tape(small, &mut tape).to_owned(), got);
+        // A strided row view takes the same path.
+        let strided = wide.slice(ndarray::s![..rows, ..4]);
+        assert_eq!(net.forward(strided, &mut ws).to_owned(), got);
+    }
 }
 
 fn activation_strategy() -> impl Strategy<Value = Activation> {
