@@ -194,6 +194,13 @@ impl Simulation {
         self.data.qvel()
     }
 
+    /// The controls last written by [`Simulation::step`], `nu` numbers
+    /// (as given: MuJoCo clamps them to the control ranges when it uses
+    /// them).
+    pub fn ctrl(&self) -> &[f64] {
+        self.data.ctrl()
+    }
+
     /// The control ranges of the actuators, `nu` pairs `[low, high]`.
     pub fn ctrl_range(&self) -> &[[f64; 2]] {
         self.model().actuator_ctrlrange()
@@ -332,6 +339,7 @@ mod tests {
             for _ in 0..10 {
                 sim.step(&[0.5, -0.3, 0.9]).unwrap();
             }
+            assert_eq!(sim.ctrl(), &[0.5, -0.3, 0.9]);
         }
         assert_eq!(a.qpos(), b.qpos());
         assert_eq!(a.qvel(), b.qvel());
