@@ -91,13 +91,13 @@ fn rnd_fit(c: &mut Criterion) {
     g.finish();
 }
 
-/// (b) The release's RND target, forward only.
+/// (b) The release's RND target, forward only (batch 1 takes the row-by-row path).
 fn rnd_target_forward(c: &mut Criterion) {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let data = pairs(&mut rng);
     let (_, target) = rnd_nets(&mut rng);
     let mut ws = Workspace::new();
-    for batch in [32usize, 1024] {
+    for batch in [1usize, 32, 1024] {
         let mut g = group(c, "rnd_target_forward", batch);
         let x = data.slice(s![..batch, ..]);
         g.bench_function(format!("batch{batch}"), |b| {
