@@ -23,6 +23,9 @@ enum Command {
     /// The driving scenario (paper Sec. 5.3): scripted demonstrations,
     /// recording a person in the terminal, pictures of driven paths.
     Drive(drive::DriveArgs),
+    /// The simple domain of the paper's Sec. 5.1: DQN with RED, AE, GAIL and
+    /// GMMIL rewards (Fig. 2 and 3).
+    Toy(toy::ToyArgs),
     /// The MuJoCo environments (Gymnasium -v5): check the set-up.
     Mujoco(mujoco::MujocoArgs),
 }
@@ -30,7 +33,9 @@ enum Command {
 mod demo;
 mod drive;
 mod mujoco;
+mod plot;
 mod support;
+mod toy;
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
@@ -38,6 +43,7 @@ fn main() -> anyhow::Result<()> {
         Command::Demo(args) => demo::run(args),
         Command::Support(args) => support::run(args),
         Command::Drive(args) => drive::run(args),
+        Command::Toy(args) => toy::run(args),
         Command::Mujoco(args) => mujoco::run(args),
     }
 }

@@ -1,9 +1,11 @@
 //! Deep Q-learning (Mnih et al. 2015) with a target network, a replay buffer
 //! and an epsilon-greedy schedule, learning from any [`RewardModel`].
 //!
-//! Rewards are computed by the reward model when a minibatch is drawn, never
-//! taken from the environment (whose reward is only reported as the true
-//! return), so a reward that adapts during training is always current.
+//! Rewards come from the reward model, never from the environment (whose
+//! reward is only reported as the true return). Each transition's reward is
+//! computed once when it is stored; when an adaptive model (GAIL, GMMIL)
+//! updates, the whole replay buffer is relabelled, so a minibatch never sees
+//! a stale reward.
 
 use ndarray::{Array2, ArrayView2};
 use rand::{Rng, RngExt};
@@ -11,7 +13,10 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use red_core::{Env, RewardModel, Seeder, Space, Stream};
-use red_nets::{clip_grad_norm, Activation, Adam, AdamConfig, Gradients, Init, Mlp, MlpConfig, Optimizer, Tape, Workspace};
+use red_nets::{
+    Activation, Adam, AdamConfig, Gradients, Init, Mlp, MlpConfig, Optimizer, Tape, Workspace,
+    clip_grad_norm,
+};
 
 use crate::replay::ReplayBuffer;
 use crate::{Error, Result};
@@ -107,7 +112,10 @@ impl DqnConfig {
         if self.target_update_interval == 0 {
             return bad("target_update_interval", "must be at least 1");
         }
-        for (field, v) in [("start_epsilon", self.start_epsilon), ("end_epsilon", self.end_epsilon)] {
+        for (field, v) in [
+            ("start_epsilon", self.start_epsilon),
+            ("end_epsilon", self.end_epsilon),
+        ] {
             if !(0.0..=1.0).contains(&v) {
                 return bad(field, "must be in [0, 1]");
             }
@@ -163,7 +171,13 @@ impl Dqn {
     /// # Errors
     /// [`Error::InvalidConfig`] for a bad config, a non-discrete action
     /// space or `total_steps == 0`.
-    pub fn new(config: DqnConfig, obs_dim: usize, action_space: &Space, total_steps: u64, seeder: &Seeder) -> Result<Self> {
+    pub fn new(
+        config: DqnConfig,
+        obs_dim: usize,
+        action_space: &Space,
+        total_steps: u64,
+        seeder: &Seeder,
+    ) -> Result<Self> {
         config.validate()?;
         let n_actions = match action_space {
             Space::Discrete(n) if *n > 0 => *n,
@@ -233,7 +247,10 @@ impl Dqn {
     /// The greedy action index for each row of `obs` `(n, obs_dim)`.
     pub fn greedy_actions(&self, obs: ArrayView2<'_, f64>) -> Vec<usize> {
         let q = self.q_values(obs);
-        q.rows().into_iter().map(|row| argmax(row.as_slice().unwrap_or(&[]))).collect()
+        q.rows()
+            .into_iter()
+            .map(|row| argmax(row.as_slice().unwrap_or(&[])))
+            .collect()
     }
 
     fn act<R: Rng + ?Sized>(&self, obs: &[f64], rng: &mut R, ws: &mut Workspace) -> usize {
@@ -269,22 +286,42 @@ impl Dqn {
         let mut ep_len = 0;
         let end = self.steps + steps;
         while self.steps < end {
-            let mut rng = std::mem::replace(&mut self.explore_rng, rand::SeedableRng::seed_from_u64(0));
+            let mut rng =
+                std::mem::replace(&mut self.explore_rng, rand::SeedableRng::seed_from_u64(0));
             let a = self.act(&obs, &mut rng, &mut ws);
             self.explore_rng = rng;
             let action = [a as f64];
             let step = env.step(&action)?;
-            self.buffer.push(&obs, &action, &step.observation, step.terminated)?;
+            let s_row = ArrayView2::from_shape((1, obs.len()), &obs)
+                .map_err(|e| shape_error("observation", e))?;
+            let a_row =
+                ArrayView2::from_shape((1, 1), &action).map_err(|e| shape_error("action", e))?;
+            let r = reward.rewards(s_row, a_row)?[0];
+            if !r.is_finite() {
+                return Err(Error::NonFinite {
+                    what: "imitation reward".into(),
+                    step: self.steps,
+                });
+            }
+            self.buffer
+                .push(&obs, &action, r, &step.observation, step.terminated)?;
             self.steps += 1;
             ep_return += step.reward;
             ep_len += 1;
 
             if reward.is_adaptive() && self.steps % self.config.reward_update_interval == 0 {
-                let (s, u) = self.buffer.recent(self.config.reward_update_interval as usize);
+                let (s, u) = self
+                    .buffer
+                    .recent(self.config.reward_update_interval as usize);
                 reward.update(s.view(), u.view())?;
+                let model: &dyn RewardModel = reward;
+                self.buffer
+                    .relabel(|s, a| Ok(model.rewards(s.view(), a.view())?.to_vec()))?;
             }
-            if self.steps >= self.config.learning_starts && self.steps % self.config.train_frequency == 0 {
-                self.last_loss = self.learn(reward, &mut tape, &mut grads)?;
+            if self.steps >= self.config.learning_starts
+                && self.steps % self.config.train_frequency == 0
+            {
+                self.last_loss = self.learn(&mut tape, &mut grads)?;
             }
             if self.steps % self.config.target_update_interval == 0 {
                 self.target = self.q.clone();
@@ -309,16 +346,20 @@ impl Dqn {
     }
 
     /// One gradient step on a minibatch; returns the mean squared TD error.
-    fn learn(&mut self, reward: &dyn RewardModel, tape: &mut Tape, grads: &mut Gradients) -> Result<f64> {
-        let batch = self.buffer.sample(self.config.batch_size, &mut self.replay_rng)?;
-        let r = reward.rewards(batch.states.view(), batch.actions.view())?;
+    fn learn(&mut self, tape: &mut Tape, grads: &mut Gradients) -> Result<f64> {
+        let batch = self
+            .buffer
+            .sample(self.config.batch_size, &mut self.replay_rng)?;
+        let r = &batch.rewards;
         if let Some(i) = r.iter().position(|v| !v.is_finite()) {
             return Err(Error::NonFinite {
                 what: format!("imitation reward of minibatch row {i}"),
                 step: self.steps,
             });
         }
-        let next_q = self.target.predict(batch.next_states.mapv(|v| v as f32).view());
+        let next_q = self
+            .target
+            .predict(batch.next_states.mapv(|v| v as f32).view());
         let b = self.config.batch_size;
         let x = batch.states.mapv(|v| v as f32);
         let q = self.q.forward_tape(x.view(), tape).to_owned();
@@ -328,7 +369,10 @@ impl Dqn {
             let boot = if batch.terminated[i] {
                 0.0
             } else {
-                next_q.row(i).iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v)) as f64
+                next_q
+                    .row(i)
+                    .iter()
+                    .fold(f32::NEG_INFINITY, |m, &v| m.max(v)) as f64
             };
             let y = r[i] + self.config.gamma * boot;
             let a = batch.actions[[i, 0]] as usize;
@@ -348,6 +392,14 @@ impl Dqn {
         clip_grad_norm(grads, self.config.max_grad_norm);
         self.optimizer.step(&mut self.q, grads)?;
         Ok(loss)
+    }
+}
+
+fn shape_error(what: &str, e: ndarray::ShapeError) -> Error {
+    Error::ShapeMismatch {
+        what: what.into(),
+        expected: "one row".into(),
+        got: e.to_string(),
     }
 }
 
@@ -371,15 +423,29 @@ mod tests {
     /// learn the expert from it.
     struct TrueReward;
     impl RewardModel for TrueReward {
-        fn rewards(&self, s: ArrayView2<'_, f64>, a: ArrayView2<'_, f64>) -> red_core::Result<Array1<f64>> {
-            Ok(s.column(0).iter().zip(a.column(0)).map(|(s, a)| action_value(*a) * s).collect())
+        fn rewards(
+            &self,
+            s: ArrayView2<'_, f64>,
+            a: ArrayView2<'_, f64>,
+        ) -> red_core::Result<Array1<f64>> {
+            Ok(s.column(0)
+                .iter()
+                .zip(a.column(0))
+                .map(|(s, a)| action_value(*a) * s)
+                .collect())
         }
     }
 
     fn greedy_reward(dqn: &Dqn) -> f64 {
         let states = Array2::from_shape_fn((201, 1), |(i, _)| -1.0 + i as f64 * 0.01);
         let acts = dqn.greedy_actions(states.view());
-        states.column(0).iter().zip(acts).map(|(s, a)| action_value(a as f64) * s).sum::<f64>() / 201.0
+        states
+            .column(0)
+            .iter()
+            .zip(acts)
+            .map(|(s, a)| action_value(a as f64) * s)
+            .sum::<f64>()
+            / 201.0
     }
 
     #[test]
@@ -390,7 +456,8 @@ mod tests {
         };
         let mut env = simple_domain();
         let mut dqn = Dqn::new(config, 1, env.action_space(), 6_000, &Seeder::new(0)).unwrap();
-        dqn.train(&mut env, &mut TrueReward, 6_000, Some(0), &mut |_| {}).unwrap();
+        dqn.train(&mut env, &mut TrueReward, 6_000, Some(0), &mut |_| {})
+            .unwrap();
         let r = greedy_reward(&dqn);
         assert!(r > 0.45, "greedy mean reward {r}");
     }
@@ -399,10 +466,19 @@ mod tests {
     fn same_seed_same_network() {
         let run = || {
             let mut env = simple_domain();
-            let mut dqn = Dqn::new(DqnConfig::default(), 1, env.action_space(), 2_000, &Seeder::new(5)).unwrap();
+            let mut dqn = Dqn::new(
+                DqnConfig::default(),
+                1,
+                env.action_space(),
+                2_000,
+                &Seeder::new(5),
+            )
+            .unwrap();
             let mut returns = Vec::new();
-            dqn.train(&mut env, &mut TrueReward, 2_000, Some(1), &mut |p| returns.push(p.episode_true_return))
-                .unwrap();
+            dqn.train(&mut env, &mut TrueReward, 2_000, Some(1), &mut |p| {
+                returns.push(p.episode_true_return)
+            })
+            .unwrap();
             (dqn.q_network().params_flat(), returns)
         };
         assert_eq!(run(), run());

@@ -2,18 +2,23 @@
 //! `a in {-1, +1}`, true reward `a * s`, expert `sign(s)`.
 //!
 //! The action space is `Discrete(2)`: index 0 means `a = -1`, index 1 means
-//! `a = +1` (see [`action_value`]). Reward models and demonstrations see the
-//! index, as every discrete environment of the project does.
+//! `a = +1` (see [`action_value`]). Demonstrations store the index, as for
+//! every discrete environment of the project; [`ActionValues`] lets a reward
+//! model see the paper's `a in {-1, +1}` instead.
 //!
 //! An episode lasts [`EPISODE_LENGTH`] steps and ends by the time limit
 //! (truncated): the task has no terminal state. "Mean episodic reward" in
 //! the experiments is the mean true reward PER STEP over an episode, so the
 //! expert scores `E|s| = 0.5` and a random policy 0 whatever the length.
 
+use ndarray::{Array1, Array2, ArrayView2};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use red_core::{BoxSpace, Demos, EpisodeEnd, Env, Error, Info, Result, Space, Step, TimeLimit, Trajectory};
+use red_core::{
+    BoxSpace, Demos, Env, EpisodeEnd, Error, Info, Result, RewardModel, Space, Step, TimeLimit,
+    Trajectory,
+};
 
 /// Steps per episode. The paper gives none; 100 makes an episode's mean
 /// reward per step a 100-sample average (std about 0.03 for the expert).
@@ -25,6 +30,32 @@ pub const ENV_ID: &str = "simple-domain";
 /// The action value `a in {-1, +1}` of a discrete action index.
 pub fn action_value(index: f64) -> f64 {
     if index >= 0.5 { 1.0 } else { -1.0 }
+}
+
+/// Action indices `(n, 1)` mapped to the paper's values `a in {-1, +1}`.
+pub fn to_action_values(actions: ArrayView2<'_, f64>) -> Array2<f64> {
+    actions.mapv(action_value)
+}
+
+/// A reward model fitted on `(s, a)` with `a in {-1, +1}`, used with the
+/// environment's action indices: it maps each index to its value before
+/// asking the inner model.
+pub struct ActionValues<R>(pub R);
+
+impl<R: RewardModel> RewardModel for ActionValues<R> {
+    fn rewards(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<Array1<f64>> {
+        self.0.rewards(states, to_action_values(actions).view())
+    }
+    fn update(&mut self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Result<()> {
+        self.0.update(states, to_action_values(actions).view())
+    }
+    fn is_adaptive(&self) -> bool {
+        self.0.is_adaptive()
+    }
 }
 
 /// The expert's action index for state `s`: `sign(s)` (`+1` at `s = 0`).
@@ -104,7 +135,10 @@ pub fn simple_domain() -> TimeLimit<SimpleDomain> {
 pub fn expert_demos<R: rand::Rng + ?Sized>(n: usize, rng: &mut R) -> Demos {
     let mut demos = Demos::new(ENV_ID, 1, 1, None);
     let observations: Vec<Vec<f64>> = (0..n).map(|_| vec![rng.random_range(-1.0..=1.0)]).collect();
-    let actions = observations.iter().map(|o| vec![expert_action(o[0])]).collect();
+    let actions = observations
+        .iter()
+        .map(|o| vec![expert_action(o[0])])
+        .collect();
     let rewards = observations.iter().map(|o| o[0].abs()).collect();
     demos.trajectories.push(Trajectory {
         observations,
@@ -136,7 +170,10 @@ mod tests {
             };
         }
         let mean = total / steps as f64;
-        assert!((mean - 0.5).abs() < 0.03, "expert mean reward per step {mean}");
+        assert!(
+            (mean - 0.5).abs() < 0.03,
+            "expert mean reward per step {mean}"
+        );
     }
 
     #[test]
@@ -167,7 +204,10 @@ mod tests {
         assert_eq!(demos.num_pairs(), 50);
         let (s, a) = demos.pairs();
         for i in 0..50 {
-            assert_eq!(action_value(a[[i, 0]]), if s[[i, 0]] >= 0.0 { 1.0 } else { -1.0 });
+            assert_eq!(
+                action_value(a[[i, 0]]),
+                if s[[i, 0]] >= 0.0 { 1.0 } else { -1.0 }
+            );
         }
     }
 }
