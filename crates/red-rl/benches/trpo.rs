@@ -7,6 +7,7 @@
 //! `cargo bench -p red-rl --bench trpo`
 
 use std::hint::black_box;
+use std::time::{Duration, Instant};
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use rand::{RngExt, SeedableRng};
@@ -71,6 +72,29 @@ fn env() -> TimeLimit<Synthetic> {
     .expect("valid limit")
 }
 
+/// Time this thread spent running on a CPU, read from
+/// `/proc/thread-self/schedstat` (nanoseconds, first field): on a shared,
+/// busy machine it leaves out the time spent waiting for a core. `None`
+/// where the file is missing.
+fn on_cpu() -> Option<Duration> {
+    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: u64 = s.split_whitespace().next()?.parse().ok()?;
+    Some(Duration::from_nanos(ns))
+}
+
+/// Runs `f` `iters` times and returns its on-CPU time (wall time if the
+/// scheduler statistics are unavailable).
+fn time_on_cpu(iters: u64, mut f: impl FnMut()) -> Duration {
+    let (cpu0, wall0) = (on_cpu(), Instant::now());
+    for _ in 0..iters {
+        f();
+    }
+    match (cpu0, on_cpu()) {
+        (Some(a), Some(b)) => b - a,
+        _ => wall0.elapsed(),
+    }
+}
+
 fn bench(c: &mut Criterion) {
     let config = TrpoConfig::default();
     let steps = config.steps_per_batch as u64;
@@ -81,6 +105,13 @@ fn bench(c: &mut Criterion) {
     let mut e = env();
     group.bench_function("iteration_1024_steps_obs11_act3", |b| {
         b.iter(|| black_box(trainer.iterate(&mut e, None).expect("iteration runs")))
+    });
+    group.bench_function("iteration_1024_steps_obs11_act3_on_cpu", |b| {
+        b.iter_custom(|iters| {
+            time_on_cpu(iters, || {
+                black_box(trainer.iterate(&mut e, None).expect("iteration runs"));
+            })
+        })
     });
     // The collection half alone, to see where the time goes.
     let mut trainer = TrpoTrainer::new(config, OBS, ACT, None, 0).expect("valid config");

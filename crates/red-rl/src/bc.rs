@@ -14,7 +14,7 @@
 //! Observations go through the policy's own normaliser, so set it (for
 //! example from the expert's observations) before cloning.
 
-use ndarray::{Array2, ArrayView2, s};
+use ndarray::{Array2, ArrayView2};
 use rand::Rng;
 use rand::seq::SliceRandom;
 use red_nets::{Adam, AdamConfig, Optimizer, Tape, Workspace};
@@ -164,9 +164,7 @@ pub fn behavior_clone<R: Rng + ?Sized>(
                 });
             }
             grads.zero();
-            policy
-                .net()
-                .backward(&tape, g.slice(s![.., ..]), &mut grads);
+            policy.net().backward_params(&tape, g.view(), &mut grads);
             adam.step(policy.net_mut(), &grads)?;
             sum += loss * m as f64;
             count += m;

@@ -499,6 +499,20 @@ impl GaussianPolicy {
         }
     }
 
+    /// [`GaussianPolicy::backward`] without the input gradient (cheaper:
+    /// what a policy-gradient step needs).
+    pub fn backward_params(
+        &self,
+        tape: &Tape,
+        dist: &GaussianBatch,
+        d_mean: ArrayView2<'_, f64>,
+        d_log_std: ArrayView2<'_, f64>,
+        grads: &mut Gradients,
+    ) {
+        let g = dist.output_grad(d_mean, d_log_std);
+        self.net.backward_params(tape, g.view(), grads);
+    }
+
     /// Reparameterised sampling of a batch: `a = mu + sigma * eps` with
     /// `eps ~ N(0, I)` drawn from `rng`. Returns `(actions, eps)`, each
     /// `(n, act_dim)`; keep `eps` for [`GaussianPolicy::backward_reparam`].
@@ -561,7 +575,7 @@ impl GaussianPolicy {
             }
         }
         out.zero();
-        self.net.backward(tape, jv.view(), out);
+        self.net.backward_params(tape, jv.view(), out);
     }
 
     /// Deterministic action (the mean) for one raw observation.

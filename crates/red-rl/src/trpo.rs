@@ -672,7 +672,7 @@ impl TrpoTrainer {
             }
         }
         let mut grads = self.policy.net().zero_grads();
-        self.policy.backward(
+        self.policy.backward_params(
             &self.scratch.tape,
             &old,
             d_mean.view(),
@@ -817,7 +817,7 @@ impl TrpoTrainer {
                 }
                 grads.zero();
                 self.value
-                    .backward(&self.scratch.value_tape, grad_out.view(), &mut grads);
+                    .backward_params(&self.scratch.value_tape, grad_out.view(), &mut grads);
                 self.value_opt.step(&mut self.value, &grads)?;
                 sum += loss as f64;
                 count += 1;
