@@ -528,6 +528,7 @@ impl TrpoTrainer {
         batch: &RolloutBatch,
         reward: Option<&mut dyn RewardModel>,
     ) -> Result<IterationMetrics> {
+        check_batch(batch, self.policy.obs_dim(), self.policy.act_dim())?;
         let step_id = self.env_steps;
         let mean_true_reward = mean(&batch.true_rewards);
         let (rewards, mean_imitation_reward) = match &reward {
@@ -830,6 +831,37 @@ impl TrpoTrainer {
         }
         Ok(last_epoch_loss)
     }
+}
+
+/// Rejects a batch whose parts disagree (its fields are public, so one can
+/// be built by hand).
+fn check_batch(batch: &RolloutBatch, obs_dim: usize, act_dim: usize) -> Result<()> {
+    let t = batch.len();
+    let b = batch.boundary_steps.len();
+    let ok = t > 0
+        && batch.observations.dim() == (t, obs_dim)
+        && batch.actions.dim() == (t, act_dim)
+        && batch.terminated.len() == t
+        && batch.truncated.len() == t
+        && batch.boundary_observations.dim() == (b, obs_dim)
+        && batch.boundary_steps.iter().all(|&s| s < t)
+        && batch.boundary_steps.last() == Some(&(t - 1));
+    if !ok {
+        return Err(Error::ShapeMismatch {
+            what: "rollout batch".into(),
+            expected: format!(
+                "at least one step, (T, {obs_dim}) observations, (T, {act_dim}) actions, T flags, \
+                 and boundary steps below T ending with the last step"
+            ),
+            got: format!(
+                "T = {t}, observations {:?}, actions {:?}, {} boundary steps",
+                batch.observations.dim(),
+                batch.actions.dim(),
+                b
+            ),
+        });
+    }
+    Ok(())
 }
 
 struct PolicyStep {

@@ -268,6 +268,16 @@ fn resume_into_another_environment_is_refused() {
 }
 
 #[test]
+fn malformed_batch_is_refused() {
+    let mut t = TrpoTrainer::new(small_config(), 2, 1, None, 4).unwrap();
+    let mut env = Reach::new();
+    let mut batch = t.collect(&mut env).unwrap();
+    batch.boundary_steps.clear();
+    let err = t.update(&batch, None).unwrap_err().to_string();
+    assert!(err.contains("rollout batch"), "{err}");
+}
+
+#[test]
 fn config_validation_names_the_field() {
     let cfg = TrpoConfig {
         max_kl: -1.0,
