@@ -123,7 +123,7 @@ impl DqnConfig {
         if !(self.exploration_fraction > 0.0 && self.exploration_fraction <= 1.0) {
             return bad("exploration_fraction", "must be in (0, 1]");
         }
-        if !(self.max_grad_norm > 0.0) {
+        if !(self.max_grad_norm.is_finite() && self.max_grad_norm > 0.0) {
             return bad("max_grad_norm", "must be positive");
         }
         if self.reward_update_interval == 0 {
@@ -309,7 +309,7 @@ impl Dqn {
             ep_return += step.reward;
             ep_len += 1;
 
-            if reward.is_adaptive() && self.steps % self.config.reward_update_interval == 0 {
+            if reward.is_adaptive() && self.steps.is_multiple_of(self.config.reward_update_interval) {
                 let (s, u) = self
                     .buffer
                     .recent(self.config.reward_update_interval as usize);
@@ -319,11 +319,11 @@ impl Dqn {
                     .relabel(|s, a| Ok(model.rewards(s.view(), a.view())?.to_vec()))?;
             }
             if self.steps >= self.config.learning_starts
-                && self.steps % self.config.train_frequency == 0
+                && self.steps.is_multiple_of(self.config.train_frequency)
             {
                 self.last_loss = self.learn(&mut tape, &mut grads)?;
             }
-            if self.steps % self.config.target_update_interval == 0 {
+            if self.steps.is_multiple_of(self.config.target_update_interval) {
                 self.target = self.q.clone();
             }
 

@@ -50,13 +50,13 @@ impl GmmilConfig {
     /// # Errors
     /// [`Error::InvalidConfig`] naming the first bad field.
     pub fn validate(&self) -> Result<()> {
-        if let Some((h1, h2)) = self.bandwidths {
-            if !(h1.is_finite() && h1 > 0.0 && h2.is_finite() && h2 > 0.0) {
-                return Err(Error::InvalidConfig {
-                    field: "bandwidths".into(),
-                    reason: format!("both must be positive numbers, got ({h1}, {h2})"),
-                });
-            }
+        if let Some((h1, h2)) = self.bandwidths
+            && !(h1.is_finite() && h1 > 0.0 && h2.is_finite() && h2 > 0.0)
+        {
+            return Err(Error::InvalidConfig {
+                field: "bandwidths".into(),
+                reason: format!("both must be positive numbers, got ({h1}, {h2})"),
+            });
         }
         if self.median_sample < 2 {
             return Err(Error::InvalidConfig {
@@ -86,7 +86,11 @@ impl Gmmil {
     ///
     /// # Errors
     /// A bad config, mismatched or empty batches, or non-finite values.
-    pub fn new(config: GmmilConfig, expert_states: ArrayView2<'_, f64>, expert_actions: ArrayView2<'_, f64>) -> Result<Self> {
+    pub fn new(
+        config: GmmilConfig,
+        expert_states: ArrayView2<'_, f64>,
+        expert_actions: ArrayView2<'_, f64>,
+    ) -> Result<Self> {
         config.validate()?;
         let expert = concat_pairs(expert_states, expert_actions)?;
         if expert.nrows() == 0 {
@@ -103,7 +107,10 @@ impl Gmmil {
         }
         let (h1, h2) = match config.bandwidths {
             Some((h1, h2)) => (h1, Some(h2)),
-            None => (median_sq_dist(expert.view(), expert.view(), true, config.median_sample), None),
+            None => (
+                median_sq_dist(expert.view(), expert.view(), true, config.median_sample),
+                None,
+            ),
         };
         Ok(Self {
             config,
@@ -133,7 +140,11 @@ impl Gmmil {
     fn mean_kernel(&self, x: ArrayView1<'_, f64>, set: &Array2<f64>) -> f64 {
         let mut total = 0.0;
         for row in set.rows() {
-            let d2: f64 = row.iter().zip(x.iter()).map(|(a, b)| (a - b) * (a - b)).sum();
+            let d2: f64 = row
+                .iter()
+                .zip(x.iter())
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum();
             total += self.kernel(d2);
         }
         total / set.nrows() as f64
@@ -144,13 +155,20 @@ impl Gmmil {
             .into_iter()
             .map(|row| {
                 let e = self.mean_kernel(row, &self.expert);
-                let p = self.policy.as_ref().map_or(0.0, |p| self.mean_kernel(row, p));
+                let p = self
+                    .policy
+                    .as_ref()
+                    .map_or(0.0, |p| self.mean_kernel(row, p));
                 e - p
             })
             .collect()
     }
 
-    fn pairs(&self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Result<Array2<f64>> {
+    fn pairs(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<Array2<f64>> {
         if states.ncols() != self.obs_dim || actions.ncols() != self.act_dim {
             return Err(Error::ShapeMismatch {
                 what: "GMMIL input".into(),
@@ -176,7 +194,12 @@ fn median_sq_dist(a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>, same: bool, ca
             if same && j <= i {
                 continue;
             }
-            let d2: f64 = a.row(i).iter().zip(b.row(j).iter()).map(|(x, y)| (x - y) * (x - y)).sum();
+            let d2: f64 = a
+                .row(i)
+                .iter()
+                .zip(b.row(j).iter())
+                .map(|(x, y)| (x - y) * (x - y))
+                .sum();
             d.push(d2);
         }
     }
@@ -190,12 +213,20 @@ fn median_sq_dist(a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>, same: bool, ca
 }
 
 impl RewardModel for Gmmil {
-    fn rewards(&self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> red_core::Result<Array1<f64>> {
+    fn rewards(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> red_core::Result<Array1<f64>> {
         let x = self.pairs(states, actions).map_err(into_core)?;
         Ok(self.raw_rewards(&x) - self.offset)
     }
 
-    fn update(&mut self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> red_core::Result<()> {
+    fn update(
+        &mut self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> red_core::Result<()> {
         let x = self.pairs(states, actions).map_err(into_core)?;
         if x.nrows() == 0 {
             return Ok(());
@@ -206,7 +237,12 @@ impl RewardModel for Gmmil {
             });
         }
         if self.h2.is_none() {
-            self.h2 = Some(median_sq_dist(x.view(), self.expert.view(), false, self.config.median_sample));
+            self.h2 = Some(median_sq_dist(
+                x.view(),
+                self.expert.view(),
+                false,
+                self.config.median_sample,
+            ));
         }
         self.policy = Some(x.clone());
         let raw = self.raw_rewards(&x);
@@ -238,7 +274,12 @@ mod tests {
         let re = g.rewards(es.view(), ea.view()).unwrap();
         assert!(re.mean().unwrap() > rp.mean().unwrap() + 0.1);
         // A reward does not depend on the batch it is computed in.
-        let one = g.rewards(es.slice(ndarray::s![3..4, ..]), ea.slice(ndarray::s![3..4, ..])).unwrap();
+        let one = g
+            .rewards(
+                es.slice(ndarray::s![3..4, ..]),
+                ea.slice(ndarray::s![3..4, ..]),
+            )
+            .unwrap();
         assert_eq!(one[0], re[3]);
     }
 

@@ -4,11 +4,16 @@
 //! [`red_core::RewardModel`].
 
 pub mod bc;
+pub mod dqn;
 pub mod error;
 pub mod gae;
+pub mod gail;
+pub mod gmmil;
 pub mod normalize;
 pub mod policy;
+pub mod replay;
 pub mod rollout;
+pub mod simple_domain;
 pub mod trpo;
 
 pub use error::{Error, Result};
