@@ -309,7 +309,11 @@ impl Dqn {
             ep_return += step.reward;
             ep_len += 1;
 
-            if reward.is_adaptive() && self.steps.is_multiple_of(self.config.reward_update_interval) {
+            if reward.is_adaptive()
+                && self
+                    .steps
+                    .is_multiple_of(self.config.reward_update_interval)
+            {
                 let (s, u) = self
                     .buffer
                     .recent(self.config.reward_update_interval as usize);
@@ -323,7 +327,10 @@ impl Dqn {
             {
                 self.last_loss = self.learn(&mut tape, &mut grads)?;
             }
-            if self.steps.is_multiple_of(self.config.target_update_interval) {
+            if self
+                .steps
+                .is_multiple_of(self.config.target_update_interval)
+            {
                 self.target = self.q.clone();
             }
 

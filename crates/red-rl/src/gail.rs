@@ -10,7 +10,7 @@
 //! like the expert's. With episodes that end on failure, a positive reward
 //! also rewards survival; learners keep termination and truncation apart.
 
-use ndarray::{s, Array1, Array2, ArrayView2};
+use ndarray::{Array1, Array2, ArrayView2, s};
 use rand::seq::SliceRandom;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -90,7 +90,10 @@ impl GailConfig {
 }
 
 /// Concatenates states and actions row by row into `f32` pairs.
-pub(crate) fn concat_pairs(states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Result<Array2<f64>> {
+pub(crate) fn concat_pairs(
+    states: ArrayView2<'_, f64>,
+    actions: ArrayView2<'_, f64>,
+) -> Result<Array2<f64>> {
     if states.nrows() != actions.nrows() {
         return Err(Error::ShapeMismatch {
             what: "state and action batches".into(),
@@ -125,7 +128,12 @@ impl Gail {
     ///
     /// # Errors
     /// A bad config, mismatched or empty expert batches, non-finite values.
-    pub fn new(config: GailConfig, expert_states: ArrayView2<'_, f64>, expert_actions: ArrayView2<'_, f64>, seed: u64) -> Result<Self> {
+    pub fn new(
+        config: GailConfig,
+        expert_states: ArrayView2<'_, f64>,
+        expert_actions: ArrayView2<'_, f64>,
+        seed: u64,
+    ) -> Result<Self> {
         config.validate()?;
         let x = concat_pairs(expert_states, expert_actions)?;
         if x.nrows() == 0 {
@@ -182,13 +190,21 @@ impl Gail {
     ///
     /// # Errors
     /// Shape mismatches with the expert dimensions.
-    pub fn expert_probability(&self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Result<Array1<f64>> {
+    pub fn expert_probability(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<Array1<f64>> {
         let x = self.inputs(states, actions)?;
         let logits = self.disc.predict(x.view());
         Ok(logits.column(0).mapv(|l| sigmoid(l as f64)))
     }
 
-    fn inputs(&self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Result<Array2<f32>> {
+    fn inputs(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<Array2<f32>> {
         if states.ncols() != self.obs_dim || actions.ncols() != self.act_dim {
             return Err(Error::ShapeMismatch {
                 what: "GAIL input".into(),
@@ -218,7 +234,9 @@ fn column_stats(x: &Array2<f64>) -> (Vec<f64>, Vec<f64>) {
 }
 
 fn standardize(x: &Array2<f64>, mean: &[f64], std: &[f64]) -> Array2<f32> {
-    Array2::from_shape_fn(x.raw_dim(), |(i, j)| ((x[[i, j]] - mean[j]) / std[j]) as f32)
+    Array2::from_shape_fn(x.raw_dim(), |(i, j)| {
+        ((x[[i, j]] - mean[j]) / std[j]) as f32
+    })
 }
 
 fn sigmoid(l: f64) -> f64 {
@@ -226,12 +244,22 @@ fn sigmoid(l: f64) -> f64 {
 }
 
 impl RewardModel for Gail {
-    fn rewards(&self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> red_core::Result<Array1<f64>> {
-        let d = self.expert_probability(states, actions).map_err(into_core)?;
+    fn rewards(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> red_core::Result<Array1<f64>> {
+        let d = self
+            .expert_probability(states, actions)
+            .map_err(into_core)?;
         Ok(d.mapv(|p| -(1.0 - p + 1e-8).ln()))
     }
 
-    fn update(&mut self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> red_core::Result<()> {
+    fn update(
+        &mut self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> red_core::Result<()> {
         self.train_discriminator(states, actions).map_err(into_core)
     }
 
@@ -241,7 +269,11 @@ impl RewardModel for Gail {
 }
 
 impl Gail {
-    fn train_discriminator(&mut self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Result<()> {
+    fn train_discriminator(
+        &mut self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<()> {
         let policy = self.inputs(states, actions)?;
         let n = policy.nrows();
         if n == 0 {
@@ -332,7 +364,10 @@ mod tests {
         }
         let wrong = gail.rewards(ps.view(), pa.view()).unwrap().mean().unwrap();
         let right = gail.rewards(es.view(), ea.view()).unwrap().mean().unwrap();
-        assert!(right > wrong + 0.5, "expert reward {right} vs policy {wrong} (before {before})");
+        assert!(
+            right > wrong + 0.5,
+            "expert reward {right} vs policy {wrong} (before {before})"
+        );
         assert!(gail.last_loss().is_finite());
     }
 
@@ -343,7 +378,10 @@ mod tests {
         assert!(Gail::new(GailConfig::default(), es.view(), ea.view(), 0).is_err());
         let ea = Array2::zeros((4, 1));
         let gail = Gail::new(GailConfig::default(), es.view(), ea.view(), 0).unwrap();
-        assert!(gail.rewards(Array2::zeros((2, 3)).view(), Array2::zeros((2, 1)).view()).is_err());
+        assert!(
+            gail.rewards(Array2::zeros((2, 3)).view(), Array2::zeros((2, 1)).view())
+                .is_err()
+        );
         let c = GailConfig {
             minibatch: 0,
             ..GailConfig::default()
