@@ -26,11 +26,15 @@ enum Command {
     /// The simple domain of the paper's Sec. 5.1: DQN with RED, AE, GAIL and
     /// GMMIL rewards (Fig. 2 and 3).
     Toy(toy::ToyArgs),
+    /// Check the whole install: MuJoCo library version, model files,
+    /// threads, and a tiny run of every environment.
+    Doctor(doctor::DoctorArgs),
     /// The MuJoCo environments (Gymnasium -v5): check the set-up.
     Mujoco(mujoco::MujocoArgs),
 }
 
 mod demo;
+mod doctor;
 mod drive;
 mod mujoco;
 mod plot;
@@ -41,6 +45,7 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Demo(args) => demo::run(args),
+        Command::Doctor(args) => doctor::run(args),
         Command::Support(args) => support::run(args),
         Command::Drive(args) => drive::run(args),
         Command::Toy(args) => toy::run(args),

@@ -56,6 +56,15 @@ pub use registry::{BoxedEnv, EnvId, make};
 pub use simulation::Simulation;
 pub use walker2d::{Walker2d, Walker2dConfig};
 
+/// The version string of the MuJoCo library loaded at run time (this crate
+/// binds 3.17.0).
+pub fn library_version() -> &'static str {
+    mujoco_rs::mujoco_version()
+}
+
+/// The MuJoCo version the bindings were generated for.
+pub const EXPECTED_LIBRARY_VERSION: &str = "3.17.0";
+
 impl<E: MujocoEnv + ?Sized> MujocoEnv for Box<E> {
     fn simulation(&self) -> &Simulation {
         (**self).simulation()
