@@ -14,6 +14,7 @@ pub mod policy;
 pub mod replay;
 pub mod rollout;
 pub mod simple_domain;
+pub mod svg;
 pub mod trpo;
 
 pub use error::{Error, Result};

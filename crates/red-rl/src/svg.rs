@@ -1,0 +1,758 @@
+//! SVG(1) with experience replay (Heess et al. 2015, "Learning Continuous
+//! Control Policies by Stochastic Value Gradients", Algorithm 2, SVG(1)-ER).
+//!
+//! Three learned pieces, all updated from a replay buffer:
+//!
+//! - a one-step dynamics model `x' = x + f(x, a)` (an MLP predicting the
+//!   change of the policy's prepared observation `x`), fitted by mean squared
+//!   error on replayed transitions;
+//! - a state-value function `V(x)` fitted by TD(0) with a Polyak-averaged
+//!   target network, each transition weighted by its truncated importance
+//!   weight;
+//! - a reparameterised Gaussian policy `a = mu(x) + sigma(x) * eta`
+//!   ([`GaussianPolicy`]), moved along the gradient of
+//!   `w * [r(s, a) + gamma * V(x')]`.
+//!
+//! The policy step follows SVG(1)-ER's noise inference: for a replayed
+//! transition `(s, a, s')` the policy noise is inferred as
+//! `eta = (a - mu(x)) / sigma(x)` and the model noise as
+//! `xi = x'_observed - x - f(x, a)`, both held fixed, so the objective
+//! `r(s, mu + sigma eta) + gamma V(x + f(x, mu + sigma eta) + xi)` equals the
+//! observed outcome at the current parameters and its gradient flows through
+//! the reward's action-gradient, the model's action-Jacobian and the
+//! reparameterisation. Each term is weighted by the importance weight
+//! `w = min(pi(a|s) / mu_b(a|s), iw_clip)` of the current policy against the
+//! behaviour policy that chose the action (the log-probability is stored at
+//! acting time), treated as a constant, as in Heess et al.
+//!
+//! The reward and its action-gradient come from a [`DifferentiableReward`],
+//! implemented for RED's [`RedReward`].
+
+use ndarray::{Array1, Array2, ArrayView2, Axis, concatenate, s};
+use rand::{Rng, RngExt};
+use serde::{Deserialize, Serialize};
+
+use red_core::{Env, Info, Space};
+use red_nets::{
+    Activation, Adam, AdamConfig, Gradients, Init, Mlp, MlpConfig, Optimizer, Tape, Workspace,
+    clip_grad_norm, mse_loss,
+};
+use red_support::{RedReward, SupportModel};
+
+use crate::policy::{GaussianPolicy, PolicyWorkspace};
+use crate::{Error, Result};
+
+/// A reward `r(s, a)` with its gradient with respect to the action.
+pub trait DifferentiableReward {
+    /// Rewards `(n,)` of states `(n, obs_dim)` and actions `(n, act_dim)`,
+    /// and `dr/da`, `(n, act_dim)`.
+    ///
+    /// # Errors
+    /// Shape errors of the implementation.
+    fn reward_and_grad(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<(Array1<f64>, Array2<f64>)>;
+}
+
+impl<M: SupportModel> DifferentiableReward for RedReward<M> {
+    fn reward_and_grad(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<(Array1<f64>, Array2<f64>)> {
+        self.reward_grad_action(states, actions)
+            .map_err(|e| Error::Core(red_core::Error::from(e)))
+    }
+}
+
+/// Settings of [`Svg1`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SvgConfig {
+    /// Hidden widths of the dynamics model and of the value function. Our
+    /// choice: `[100, 100]`, the width of the release's policy.
+    pub hidden: Vec<usize>,
+    /// Discount. Our choice: 0.99 (the RED paper does not state SVG's).
+    pub gamma: f64,
+    /// Adam learning rate of the policy. Our choice: 1e-4, small because
+    /// the policy is usually warm-started by behaviour cloning.
+    pub policy_lr: f32,
+    /// Adam learning rate of the value function. Our choice: 1e-3.
+    pub value_lr: f32,
+    /// Adam learning rate of the dynamics model. Our choice: 1e-3.
+    pub model_lr: f32,
+    /// Minibatch size of every update. Our choice: 64.
+    pub batch_size: usize,
+    /// Replay capacity in transitions. Our choice: 100,000.
+    pub buffer_size: usize,
+    /// Environment steps before any update. Our choice: 500.
+    pub learning_starts: u64,
+    /// Gradient updates (model, value and policy once each) per environment
+    /// step after `learning_starts`. Our choice: 1.
+    pub updates_per_step: usize,
+    /// Policy updates are skipped for this many environment steps after
+    /// `learning_starts`, while the model and value settle. Our choice: 500.
+    pub policy_delay: u64,
+    /// Truncation of the importance weights `pi / mu_b` (Heess et al.
+    /// truncate them; the value is our choice: 5).
+    pub iw_clip: f64,
+    /// Polyak factor of the value target network per update. Our choice:
+    /// 0.01.
+    pub target_tau: f64,
+    /// Gradient-norm clip of every network. Our choice: 10.
+    pub max_grad_norm: f32,
+}
+
+impl Default for SvgConfig {
+    fn default() -> Self {
+        Self {
+            hidden: vec![100, 100],
+            gamma: 0.99,
+            policy_lr: 1e-4,
+            value_lr: 1e-3,
+            model_lr: 1e-3,
+            batch_size: 64,
+            buffer_size: 100_000,
+            learning_starts: 500,
+            updates_per_step: 1,
+            policy_delay: 500,
+            iw_clip: 5.0,
+            target_tau: 0.01,
+            max_grad_norm: 10.0,
+        }
+    }
+}
+
+impl SvgConfig {
+    /// Checks the settings.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] naming the field.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |field: &str, reason: String| {
+            Err(Error::InvalidConfig {
+                field: field.into(),
+                reason,
+            })
+        };
+        if self.hidden.contains(&0) {
+            return bad("hidden", "widths must be at least 1".into());
+        }
+        if !(0.0..1.0).contains(&self.gamma) {
+            return bad("gamma", format!("must lie in [0, 1), got {}", self.gamma));
+        }
+        for (f, v) in [
+            ("policy_lr", self.policy_lr),
+            ("value_lr", self.value_lr),
+            ("model_lr", self.model_lr),
+            ("max_grad_norm", self.max_grad_norm),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(f, format!("must be finite and > 0, got {v}"));
+            }
+        }
+        for (f, v) in [
+            ("batch_size", self.batch_size),
+            ("buffer_size", self.buffer_size),
+            ("updates_per_step", self.updates_per_step),
+        ] {
+            if v == 0 {
+                return bad(f, "must be at least 1".into());
+            }
+        }
+        if !(self.iw_clip.is_finite() && self.iw_clip >= 1.0) {
+            return bad(
+                "iw_clip",
+                format!("must be finite and >= 1, got {}", self.iw_clip),
+            );
+        }
+        if !(self.target_tau > 0.0 && self.target_tau <= 1.0) {
+            return bad(
+                "target_tau",
+                format!("must lie in (0, 1], got {}", self.target_tau),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Replayed transitions with the behaviour policy's log-probabilities.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Replay {
+    capacity: usize,
+    states: Vec<Vec<f64>>,
+    actions: Vec<Vec<f64>>,
+    next_states: Vec<Vec<f64>>,
+    rewards: Vec<f64>,
+    terminated: Vec<bool>,
+    behaviour_logp: Vec<f64>,
+    next: usize,
+}
+
+/// A minibatch for the SVG(1) updates; rows are transitions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SvgBatch {
+    /// Raw states `(b, obs_dim)`.
+    pub states: Array2<f64>,
+    /// Actions taken `(b, act_dim)`.
+    pub actions: Array2<f64>,
+    /// Raw next states `(b, obs_dim)`.
+    pub next_states: Array2<f64>,
+    /// Stored (imitation) rewards.
+    pub rewards: Vec<f64>,
+    /// Whether the next state is terminal.
+    pub terminated: Vec<bool>,
+    /// Log-probability of each action under the behaviour policy.
+    pub behaviour_logp: Vec<f64>,
+}
+
+/// The quantities held fixed in a policy step: the inferred policy noise
+/// `eta`, model noise `xi` and the truncated importance weights, computed at
+/// the current parameters by [`Svg1::policy_inputs`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct PolicyInputs {
+    /// Inferred policy noise `(b, act_dim)`.
+    pub eta: Array2<f64>,
+    /// Inferred model noise `(b, obs_dim)`, in prepared-observation units.
+    pub xi: Array2<f64>,
+    /// Truncated importance weights.
+    pub weights: Vec<f64>,
+}
+
+/// Losses of one update.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct UpdateStats {
+    /// Model mean squared error.
+    pub model_loss: f64,
+    /// Value TD mean squared error.
+    pub value_loss: f64,
+    /// Policy objective (mean weighted one-step value), when updated.
+    pub policy_objective: Option<f64>,
+}
+
+/// An episode finished during [`Svg1::train`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeReport {
+    /// Environment steps so far.
+    pub env_steps: u64,
+    /// Sum of the environment's (true) rewards.
+    pub true_return: f64,
+    /// Sum of the imitation rewards stored, terminal adjustment included.
+    pub imitation_return: f64,
+    /// Steps in the episode.
+    pub length: usize,
+    /// The last step's info.
+    pub info: Info,
+}
+
+/// An SVG(1)-ER learner; see the module documentation.
+#[derive(Debug, Clone)]
+pub struct Svg1 {
+    config: SvgConfig,
+    policy: GaussianPolicy,
+    model: Mlp,
+    value: Mlp,
+    value_target: Mlp,
+    policy_opt: Adam,
+    model_opt: Adam,
+    value_opt: Adam,
+    replay: Replay,
+    env_steps: u64,
+}
+
+impl Svg1 {
+    /// A learner improving `policy`, with fresh model and value networks
+    /// initialised from `rng`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for a bad config.
+    pub fn new<R: Rng + ?Sized>(
+        config: &SvgConfig,
+        policy: GaussianPolicy,
+        rng: &mut R,
+    ) -> Result<Self> {
+        config.validate()?;
+        let (o, a) = (policy.obs_dim(), policy.act_dim());
+        let model = Mlp::new(
+            &MlpConfig::new(o + a, &config.hidden, o)
+                .with_activation(Activation::Tanh)
+                .with_init(Init::GlorotUniform),
+            rng,
+        )?;
+        let value = Mlp::new(
+            &MlpConfig::new(o, &config.hidden, 1)
+                .with_activation(Activation::Tanh)
+                .with_init(Init::GlorotUniform),
+            rng,
+        )?;
+        let policy_opt = Adam::new(AdamConfig::with_lr(config.policy_lr), policy.net())?;
+        let model_opt = Adam::new(AdamConfig::with_lr(config.model_lr), &model)?;
+        let value_opt = Adam::new(AdamConfig::with_lr(config.value_lr), &value)?;
+        Ok(Self {
+            config: config.clone(),
+            policy,
+            value_target: value.clone(),
+            model,
+            value,
+            policy_opt,
+            model_opt,
+            value_opt,
+            replay: Replay {
+                capacity: config.buffer_size,
+                states: Vec::new(),
+                actions: Vec::new(),
+                next_states: Vec::new(),
+                rewards: Vec::new(),
+                terminated: Vec::new(),
+                behaviour_logp: Vec::new(),
+                next: 0,
+            },
+            env_steps: 0,
+        })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &SvgConfig {
+        &self.config
+    }
+
+    /// The policy.
+    pub fn policy(&self) -> &GaussianPolicy {
+        &self.policy
+    }
+
+    /// The policy, mutably (to set parameters, e.g. in a gradient check).
+    pub fn policy_mut(&mut self) -> &mut GaussianPolicy {
+        &mut self.policy
+    }
+
+    /// Unwraps the policy.
+    pub fn into_policy(self) -> GaussianPolicy {
+        self.policy
+    }
+
+    /// Transitions held in replay.
+    pub fn replay_len(&self) -> usize {
+        self.replay.rewards.len()
+    }
+
+    /// Environment steps seen by [`Svg1::train`].
+    pub fn env_steps(&self) -> u64 {
+        self.env_steps
+    }
+
+    /// Samples an action for one raw observation; returns it with its
+    /// log-probability under the current policy.
+    ///
+    /// # Errors
+    /// Shape or non-finite observation errors.
+    pub fn act<R: Rng + ?Sized>(&self, obs: &[f64], rng: &mut R) -> Result<(Vec<f64>, f64)> {
+        let mut a = vec![0.0; self.policy.act_dim()];
+        self.policy
+            .act_into(obs, Some(rng), &mut PolicyWorkspace::default(), &mut a)?;
+        let x = self
+            .policy
+            .prepare_obs(ArrayView2::from_shape((1, obs.len()), obs).map_err(shape_err)?)?;
+        let dist = self.policy.distribution(x.view(), &mut Workspace::new())?;
+        let av = ArrayView2::from_shape((1, a.len()), &a).map_err(shape_err)?;
+        let logp = dist.log_prob(av)[0];
+        Ok((a, logp))
+    }
+
+    /// Stores a transition with the behaviour log-probability of its action.
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] for wrong lengths.
+    pub fn push(
+        &mut self,
+        state: &[f64],
+        action: &[f64],
+        behaviour_logp: f64,
+        reward: f64,
+        next_state: &[f64],
+        terminated: bool,
+    ) -> Result<()> {
+        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
+        if state.len() != o || next_state.len() != o || action.len() != a {
+            return Err(Error::ShapeMismatch {
+                what: "SVG transition".into(),
+                expected: format!("states of {o} and an action of {a}"),
+                got: format!("{}, {} and {}", state.len(), next_state.len(), action.len()),
+            });
+        }
+        let r = &mut self.replay;
+        if r.rewards.len() < r.capacity {
+            r.states.push(state.to_vec());
+            r.actions.push(action.to_vec());
+            r.next_states.push(next_state.to_vec());
+            r.rewards.push(reward);
+            r.terminated.push(terminated);
+            r.behaviour_logp.push(behaviour_logp);
+        } else {
+            let i = r.next;
+            r.states[i] = state.to_vec();
+            r.actions[i] = action.to_vec();
+            r.next_states[i] = next_state.to_vec();
+            r.rewards[i] = reward;
+            r.terminated[i] = terminated;
+            r.behaviour_logp[i] = behaviour_logp;
+        }
+        r.next = (r.next + 1) % r.capacity;
+        Ok(())
+    }
+
+    /// Adds `delta` to the stored reward of the most recent transition (the
+    /// terminal reward heuristic at an episode's end).
+    pub fn adjust_last_reward(&mut self, delta: f64) {
+        let r = &mut self.replay;
+        if r.rewards.is_empty() {
+            return;
+        }
+        let i = (r.next + r.capacity - 1) % r.capacity;
+        r.rewards[i] += delta;
+    }
+
+    /// Draws `n` transitions uniformly with replacement.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] if the replay is empty.
+    pub fn sample<R: Rng + ?Sized>(&self, n: usize, rng: &mut R) -> Result<SvgBatch> {
+        let r = &self.replay;
+        let len = r.rewards.len();
+        if len == 0 || n == 0 {
+            return Err(Error::InvalidConfig {
+                field: "batch_size".into(),
+                reason: format!("cannot draw {n} transitions from {len} held"),
+            });
+        }
+        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
+        let mut b = SvgBatch {
+            states: Array2::zeros((n, o)),
+            actions: Array2::zeros((n, a)),
+            next_states: Array2::zeros((n, o)),
+            rewards: Vec::with_capacity(n),
+            terminated: Vec::with_capacity(n),
+            behaviour_logp: Vec::with_capacity(n),
+        };
+        for row in 0..n {
+            let i = rng.random_range(0..len);
+            for j in 0..o {
+                b.states[[row, j]] = r.states[i][j];
+                b.next_states[[row, j]] = r.next_states[i][j];
+            }
+            for j in 0..a {
+                b.actions[[row, j]] = r.actions[i][j];
+            }
+            b.rewards.push(r.rewards[i]);
+            b.terminated.push(r.terminated[i]);
+            b.behaviour_logp.push(r.behaviour_logp[i]);
+        }
+        Ok(b)
+    }
+
+    /// Model input `[x, a]`.
+    fn model_input(x: ArrayView2<'_, f32>, a: ArrayView2<'_, f64>) -> Array2<f32> {
+        concatenate(Axis(1), &[x, a.mapv(|v| v as f32).view()]).expect("same number of rows")
+    }
+
+    /// One model step on `batch`; returns the loss.
+    ///
+    /// # Errors
+    /// Shape errors.
+    pub fn update_model(&mut self, batch: &SvgBatch) -> Result<f64> {
+        let x = self.policy.prepare_obs(batch.states.view())?;
+        let xn = self.policy.prepare_obs(batch.next_states.view())?;
+        let input = Self::model_input(x.view(), batch.actions.view());
+        let target = &xn - &x;
+        let mut tape = Tape::new();
+        let pred = self.model.forward_tape(input.view(), &mut tape);
+        let (loss, g) = mse_loss(pred, target.view());
+        let mut grads = self.model.zero_grads();
+        self.model.backward_params(&tape, g.view(), &mut grads);
+        clip_grad_norm(&mut grads, self.config.max_grad_norm);
+        self.model_opt.step(&mut self.model, &grads)?;
+        Ok(loss as f64)
+    }
+
+    /// Truncated importance weights of `batch` under the current policy.
+    ///
+    /// # Errors
+    /// Shape errors.
+    pub fn importance_weights(&self, batch: &SvgBatch) -> Result<Vec<f64>> {
+        let x = self.policy.prepare_obs(batch.states.view())?;
+        let dist = self.policy.distribution(x.view(), &mut Workspace::new())?;
+        let lp = dist.log_prob(batch.actions.view());
+        Ok(lp
+            .iter()
+            .zip(&batch.behaviour_logp)
+            .map(|(l, b)| (l - b).min(self.config.iw_clip.ln()).exp())
+            .collect())
+    }
+
+    /// One importance-weighted TD(0) step of the value function; returns
+    /// the loss. Also moves the target network.
+    ///
+    /// # Errors
+    /// Shape errors.
+    pub fn update_value(&mut self, batch: &SvgBatch, weights: &[f64]) -> Result<f64> {
+        let x = self.policy.prepare_obs(batch.states.view())?;
+        let xn = self.policy.prepare_obs(batch.next_states.view())?;
+        let vn = self.value_target.predict(xn.view());
+        let n = batch.rewards.len();
+        let mut tape = Tape::new();
+        let v = self.value.forward_tape(x.view(), &mut tape).to_owned();
+        let mut g = Array2::<f32>::zeros((n, 1));
+        let mut loss = 0.0;
+        for i in 0..n {
+            let boot = if batch.terminated[i] {
+                0.0
+            } else {
+                self.config.gamma * vn[[i, 0]] as f64
+            };
+            let d = v[[i, 0]] as f64 - (batch.rewards[i] + boot);
+            loss += weights[i] * d * d / n as f64;
+            g[[i, 0]] = (2.0 * weights[i] * d / n as f64) as f32;
+        }
+        let mut grads = self.value.zero_grads();
+        self.value.backward_params(&tape, g.view(), &mut grads);
+        clip_grad_norm(&mut grads, self.config.max_grad_norm);
+        self.value_opt.step(&mut self.value, &grads)?;
+        let tau = self.config.target_tau as f32;
+        let p = self.value.params_flat();
+        let mut t = self.value_target.params_flat();
+        for (ti, pi) in t.iter_mut().zip(&p) {
+            *ti += tau * (pi - *ti);
+        }
+        self.value_target.set_params_flat(&t)?;
+        Ok(loss)
+    }
+
+    /// The noise and weights held fixed in a policy step on `batch`.
+    ///
+    /// # Errors
+    /// Shape errors.
+    pub fn policy_inputs(&self, batch: &SvgBatch) -> Result<PolicyInputs> {
+        let x = self.policy.prepare_obs(batch.states.view())?;
+        let xn = self.policy.prepare_obs(batch.next_states.view())?;
+        let dist = self.policy.distribution(x.view(), &mut Workspace::new())?;
+        let mut eta = &batch.actions - &dist.mean;
+        eta.zip_mut_with(&dist.log_std, |e, &ls| *e *= (-ls).exp());
+        let input = Self::model_input(x.view(), batch.actions.view());
+        let pred = self.model.predict(input.view());
+        let xi = (&xn - &x - &pred).mapv(|v| v as f64);
+        let weights = self.importance_weights(batch)?;
+        Ok(PolicyInputs { eta, xi, weights })
+    }
+
+    /// The policy objective `mean_i w_i [r(s_i, a_i) + gamma (1 - d_i)
+    /// V(x_i + f(x_i, a_i) + xi_i)]` with `a_i = mu(x_i) + sigma(x_i) eta_i`,
+    /// and its gradient with respect to the policy parameters (ascent
+    /// direction).
+    ///
+    /// # Errors
+    /// Shape errors, the reward's errors.
+    pub fn policy_objective(
+        &self,
+        batch: &SvgBatch,
+        inputs: &PolicyInputs,
+        reward: &dyn DifferentiableReward,
+    ) -> Result<(f64, Gradients)> {
+        let n = batch.rewards.len();
+        let o = self.policy.obs_dim();
+        let x = self.policy.prepare_obs(batch.states.view())?;
+        let mut ptape = Tape::new();
+        let dist = self.policy.distribution_tape(x.view(), &mut ptape)?;
+        let mut a = inputs.eta.clone();
+        a.zip_mut_with(&dist.log_std, |e, &ls| *e *= ls.exp());
+        a += &dist.mean;
+        let (r, dr) = reward.reward_and_grad(batch.states.view(), a.view())?;
+        if r.len() != n || dr.dim() != a.dim() {
+            return Err(Error::ShapeMismatch {
+                what: "differentiable reward output".into(),
+                expected: format!("{n} rewards and {:?} gradients", a.dim()),
+                got: format!("{} and {:?}", r.len(), dr.dim()),
+            });
+        }
+        // Next state through the model with the inferred model noise.
+        let input = Self::model_input(x.view(), a.view());
+        let mut mtape = Tape::new();
+        let pred = self.model.forward_tape(input.view(), &mut mtape).to_owned();
+        let xn = &x + &pred + &inputs.xi.mapv(|v| v as f32);
+        let mut vtape = Tape::new();
+        let v = self.value.forward_tape(xn.view(), &mut vtape).to_owned();
+        let mut objective = 0.0;
+        let mut gv = Array2::<f32>::zeros((n, 1));
+        for i in 0..n {
+            let cont = if batch.terminated[i] { 0.0 } else { 1.0 };
+            let w = inputs.weights[i] / n as f64;
+            objective += w * (r[i] + self.config.gamma * cont * v[[i, 0]] as f64);
+            gv[[i, 0]] = (w * self.config.gamma * cont) as f32;
+        }
+        // dJ/dx' -> dJ/d(model output) is the same (x' = x + f + xi).
+        let mut scratch = self.value.zero_grads();
+        let d_xn = self.value.backward(&vtape, gv.view(), &mut scratch);
+        let mut scratch_m = self.model.zero_grads();
+        let d_in = self.model.backward(&mtape, d_xn.view(), &mut scratch_m);
+        let mut d_a = d_in.slice(s![.., o..]).mapv(|v| v as f64);
+        for i in 0..n {
+            let w = inputs.weights[i] / n as f64;
+            for j in 0..a.ncols() {
+                d_a[[i, j]] += w * dr[[i, j]];
+            }
+        }
+        let mut grads = self.policy.net().zero_grads();
+        self.policy
+            .backward_reparam(&ptape, &dist, inputs.eta.view(), d_a.view(), &mut grads);
+        Ok((objective, grads))
+    }
+
+    /// One policy ascent step on `batch`; returns the objective.
+    ///
+    /// # Errors
+    /// Shape errors, the reward's errors, [`Error::NonFinite`].
+    pub fn update_policy(
+        &mut self,
+        batch: &SvgBatch,
+        inputs: &PolicyInputs,
+        reward: &dyn DifferentiableReward,
+    ) -> Result<f64> {
+        let (obj, mut grads) = self.policy_objective(batch, inputs, reward)?;
+        if !grads.is_finite() || !obj.is_finite() {
+            return Err(Error::NonFinite {
+                what: "SVG policy gradient".into(),
+                step: self.env_steps,
+            });
+        }
+        grads.scale(-1.0);
+        clip_grad_norm(&mut grads, self.config.max_grad_norm);
+        self.policy_opt.step(self.policy.net_mut(), &grads)?;
+        Ok(obj)
+    }
+
+    /// One round of updates (model, value, and the policy when
+    /// `with_policy`) on fresh minibatches.
+    ///
+    /// # Errors
+    /// As the individual updates.
+    pub fn update<R: Rng + ?Sized>(
+        &mut self,
+        reward: &dyn DifferentiableReward,
+        with_policy: bool,
+        rng: &mut R,
+    ) -> Result<UpdateStats> {
+        let bs = self.config.batch_size;
+        let b = self.sample(bs, rng)?;
+        let model_loss = self.update_model(&b)?;
+        let b = self.sample(bs, rng)?;
+        let w = self.importance_weights(&b)?;
+        let value_loss = self.update_value(&b, &w)?;
+        let policy_objective = if with_policy {
+            let b = self.sample(bs, rng)?;
+            let inputs = self.policy_inputs(&b)?;
+            Some(self.update_policy(&b, &inputs, reward)?)
+        } else {
+            None
+        };
+        Ok(UpdateStats {
+            model_loss,
+            value_loss,
+            policy_objective,
+        })
+    }
+
+    /// Runs `steps` environment steps with the stochastic policy, storing
+    /// transitions with the imitation reward of `reward` (never the
+    /// environment's) and updating as configured. At an episode's end,
+    /// `terminal(final_reward)` is added to the last stored reward (RED's
+    /// terminal heuristic; pass `|_| 0.0` for none) and `on_episode` gets
+    /// a report. Episodes are reset with seeds drawn from `rng`, or every
+    /// one with `reset_seed` when given (one fixed track).
+    ///
+    /// # Errors
+    /// Environment, shape and update errors.
+    #[allow(clippy::too_many_arguments)]
+    pub fn train<E: Env + ?Sized, R: Rng + ?Sized>(
+        &mut self,
+        env: &mut E,
+        reward: &dyn DifferentiableReward,
+        steps: u64,
+        reset_seed: Option<u64>,
+        terminal: &dyn Fn(f64) -> f64,
+        rng: &mut R,
+        on_episode: &mut dyn FnMut(&EpisodeReport),
+    ) -> Result<()> {
+        match (env.observation_space(), env.action_space()) {
+            (Space::Box(o), Space::Box(a))
+                if o.dim() == self.policy.obs_dim() && a.dim() == self.policy.act_dim() => {}
+            _ => {
+                return Err(Error::ShapeMismatch {
+                    what: "SVG environment spaces".into(),
+                    expected: format!(
+                        "boxes of {} and {}",
+                        self.policy.obs_dim(),
+                        self.policy.act_dim()
+                    ),
+                    got: "other spaces".into(),
+                });
+            }
+        }
+        let seed = |rng: &mut R| reset_seed.unwrap_or_else(|| rng.random());
+        let s0 = seed(rng);
+        let (mut obs, _) = env.reset(Some(s0))?;
+        let (mut true_ret, mut im_ret, mut len) = (0.0, 0.0, 0usize);
+        for _ in 0..steps {
+            let (a, logp) = self.act(&obs, rng)?;
+            let step = env.step(&a)?;
+            let ov = ArrayView2::from_shape((1, obs.len()), &obs).map_err(shape_err)?;
+            let av = ArrayView2::from_shape((1, a.len()), &a).map_err(shape_err)?;
+            let (r, _) = reward.reward_and_grad(ov, av)?;
+            let r = r[0];
+            if !r.is_finite() {
+                return Err(Error::NonFinite {
+                    what: "imitation reward".into(),
+                    step: self.env_steps,
+                });
+            }
+            self.push(&obs, &a, logp, r, &step.observation, step.terminated)?;
+            self.env_steps += 1;
+            true_ret += step.reward;
+            im_ret += r;
+            len += 1;
+            let start = self.config.learning_starts;
+            if self.env_steps > start {
+                let with_policy = self.env_steps > start + self.config.policy_delay;
+                for _ in 0..self.config.updates_per_step {
+                    self.update(reward, with_policy, rng)?;
+                }
+            }
+            if step.terminated || step.truncated {
+                let adj = terminal(r);
+                self.adjust_last_reward(adj);
+                im_ret += adj;
+                on_episode(&EpisodeReport {
+                    env_steps: self.env_steps,
+                    true_return: true_ret,
+                    imitation_return: im_ret,
+                    length: len,
+                    info: step.info.clone(),
+                });
+                let s = seed(rng);
+                obs = env.reset(Some(s))?.0;
+                (true_ret, im_ret, len) = (0.0, 0.0, 0);
+            } else {
+                obs = step.observation;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn shape_err(e: ndarray::ShapeError) -> Error {
+    Error::ShapeMismatch {
+        what: "one-row view".into(),
+        expected: "a row".into(),
+        got: e.to_string(),
+    }
+}
