@@ -23,6 +23,9 @@ pub struct DriveArgs {
     /// What to do.
     #[command(subcommand)]
     pub command: Option<DriveCommand>,
+    /// Without a subcommand: train and evaluate on a demonstration.
+    #[command(flatten)]
+    pub train: crate::drive_train::TrainArgs,
 }
 
 /// The subcommands of `red-cli drive`.
@@ -112,6 +115,7 @@ pub fn run(args: DriveArgs) -> anyhow::Result<()> {
         Some(DriveCommand::Expert(a)) => expert(a),
         Some(DriveCommand::Record(a)) => record(a),
         Some(DriveCommand::Render(a)) => render(a),
+        None if args.train.demo.is_some() => crate::drive_train::run(args.train),
         None => {
             let mut cmd = crate::Cli::command();
             cmd.build();
@@ -125,7 +129,7 @@ pub fn run(args: DriveArgs) -> anyhow::Result<()> {
     }
 }
 
-fn load_config(track: &TrackArgs) -> anyhow::Result<DriveConfig> {
+pub(crate) fn load_config(track: &TrackArgs) -> anyhow::Result<DriveConfig> {
     let mut config = match &track.config {
         Some(path) => {
             let text = std::fs::read_to_string(path)

@@ -36,6 +36,7 @@ enum Command {
 mod demo;
 mod doctor;
 mod drive;
+mod drive_train;
 mod mujoco;
 mod plot;
 mod support;
