@@ -37,6 +37,8 @@ mod demo;
 mod doctor;
 mod drive;
 mod drive_train;
+#[allow(dead_code)] // wired into the long commands one by one
+mod interrupt;
 mod mujoco;
 mod plot;
 mod support;

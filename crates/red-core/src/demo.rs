@@ -388,41 +388,8 @@ impl Demos {
             step: None,
             reason: e.to_string(),
         })?;
-        write_atomic(path, text.as_bytes())
+        crate::checkpoint::write_atomic(path, text.as_bytes())
     }
-}
-
-/// Writes `bytes` to a temporary file in `path`'s directory, syncs it and
-/// renames it over `path`.
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let io = |p: &Path| {
-        let p = p.to_path_buf();
-        move |source| Error::Io { path: p, source }
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::Io {
-            path: path.to_path_buf(),
-            source: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file path"),
-        })?
-        .to_string_lossy();
-    // Unique per process and per call, so concurrent writers never share
-    // a temporary file.
-    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let tmp: PathBuf = path.with_file_name(format!(".{name}.tmp-{}-{call}", std::process::id()));
-    let result = std::fs::File::create(&tmp)
-        .and_then(|mut f| {
-            f.write_all(bytes)?;
-            f.sync_all()
-        })
-        .map_err(io(&tmp))
-        .and_then(|()| std::fs::rename(&tmp, path).map_err(io(path)));
-    if result.is_err() {
-        // Best effort: the temporary file is useless after a failure.
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
 }
 
 fn demo_err(trajectory: Option<usize>, step: Option<usize>, reason: String) -> Error {

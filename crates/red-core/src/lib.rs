@@ -49,6 +49,7 @@
 #![warn(missing_docs)]
 
 pub mod check;
+pub mod checkpoint;
 pub mod demo;
 pub mod env;
 pub mod error;
