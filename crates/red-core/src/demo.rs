@@ -41,8 +41,7 @@
 //! ```
 
 use std::fmt::Write as _;
-use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use ndarray::Array2;
 use serde::{Deserialize, Serialize};
