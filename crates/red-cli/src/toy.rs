@@ -16,14 +16,15 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use ndarray::{Array1, Array2};
 use rand::RngExt;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use red_core::{Env, RewardModel, Seeder, Stream};
 use red_rl::dqn::{Dqn, DqnConfig};
 use red_rl::gail::{Gail, GailConfig};
 use red_rl::gmmil::{Gmmil, GmmilConfig};
 use red_rl::simple_domain::{
-    ActionValues, action_value, expert_demos, simple_domain, to_action_values,
+    ActionValues, action_value, expert_demos, expert_demos_stratified, simple_domain,
+    to_action_values,
 };
 use red_support::{
     Autoencoder, AutoencoderConfig, RedReward, RedRewardConfig, Rnd, RndConfig, Sigma1,
@@ -33,7 +34,7 @@ use red_support::{
 use crate::plot::{Panel, Series, draw_panels, mean_std};
 
 /// The imitation methods of the simple domain.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, ValueEnum, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, ValueEnum, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
     /// Random Expert Distillation (RND support estimate, `exp(-σ1 L)`).
@@ -58,7 +59,7 @@ impl Method {
 }
 
 /// Which expert scores calibrate σ1.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Calibration {
     /// Scores of each expert pair by a model fitted without it (k-fold).
@@ -67,8 +68,18 @@ pub enum Calibration {
     Train,
 }
 
+/// How the expert states of the simple domain are drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Sampling {
+    /// One uniform draw in each of `n` equal slices of [-1, 1].
+    Stratified,
+    /// Independent uniform draws on [-1, 1].
+    Iid,
+}
+
 /// Arguments of `red-cli toy`.
-#[derive(Debug, Clone, Args, Serialize)]
+#[derive(Debug, Clone, Args, Serialize, Deserialize)]
 pub struct ToyArgs {
     /// Name of the run: outputs go to `<runs-dir>/<name>/`.
     #[arg(long, default_value = "toy")]
@@ -109,6 +120,15 @@ pub struct ToyArgs {
     /// (the paper's Eq. 6 in its general form; the release trains 1).
     #[arg(long, default_value_t = 1)]
     pub rnd_ensemble: usize,
+    /// How the `n` expert states are drawn: `stratified` (one uniform draw
+    /// in each of `n` equal slices of [-1, 1]) or `iid` (independent uniform
+    /// draws, which at n = 5 miss one side of the task in one set out of 16).
+    #[arg(long, value_enum, default_value_t = Sampling::Stratified)]
+    pub sampling: Sampling,
+    /// Standardise the estimators' input `[s, a]` with the expert pairs'
+    /// mean and standard deviation (RED and AE; the release does not).
+    #[arg(long)]
+    pub standardize: bool,
     /// Epochs of the RND predictor and the autoencoder (release: 200).
     #[arg(long, default_value_t = 200)]
     pub epochs: usize,
@@ -126,7 +146,14 @@ pub struct ToyArgs {
     pub fig3_n: Option<usize>,
     /// Hide the progress bar.
     #[arg(long)]
+    #[serde(skip)]
     pub quiet: bool,
+    /// Continue the interrupted run saved in this folder (`runs/<name>`):
+    /// its settings come from its checkpoint, finished runs are kept and
+    /// the others are run. Other settings given with it are ignored.
+    #[arg(long)]
+    #[serde(skip)]
+    pub resume: Option<PathBuf>,
 }
 
 /// Number of evaluation states (fixed per seed).
@@ -140,6 +167,7 @@ struct Job {
     seed: u64,
 }
 
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 struct RunResult {
     curve: Vec<(u64, f64)>,
     /// True mean reward per step of the policy `argmax_a r(s, a)` under the
@@ -224,6 +252,7 @@ fn rnd_config(args: &ToyArgs) -> RndConfig {
     RndConfig {
         epochs: args.epochs,
         ensemble: args.rnd_ensemble,
+        standardize: args.standardize,
         ..RndConfig::default()
     }
 }
@@ -256,7 +285,11 @@ fn dqn_config(args: &ToyArgs) -> DqnConfig {
 
 fn run_one(args: &ToyArgs, job: &Job, on_eval: &dyn Fn()) -> anyhow::Result<RunResult> {
     let seeder = Seeder::new(args.seed.wrapping_add(job.seed));
-    let demos = expert_demos(job.n, &mut seeder.rng(Stream::Demo));
+    let mut demo_rng = seeder.rng(Stream::Demo);
+    let demos = match args.sampling {
+        Sampling::Stratified => expert_demos_stratified(job.n, &mut demo_rng),
+        Sampling::Iid => expert_demos(job.n, &mut demo_rng),
+    };
     // The reward models see the paper's action values a in {-1, +1}.
     let (es, ea_index) = demos.pairs();
     let ea = to_action_values(ea_index.view());
@@ -270,6 +303,7 @@ fn run_one(args: &ToyArgs, job: &Job, on_eval: &dyn Fn()) -> anyhow::Result<RunR
         Method::Ae => {
             let cfg = AutoencoderConfig {
                 epochs: args.epochs,
+                standardize: args.standardize,
                 ..AutoencoderConfig::default()
             };
             let r = fit_red_reward(&cfg, args.calibration, &es, &ea, &mut est_rng)?;
@@ -383,14 +417,51 @@ fn validate(args: &ToyArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The checkpoint of a `toy` run: its settings and the result of every
+/// finished (method, n, seed) run. Runs are independent and each is
+/// determined by its seed, so a resumed experiment ends with exactly the
+/// numbers of an uninterrupted one; a killed process loses only the runs
+/// in flight (a few seconds each).
+#[derive(Debug, Serialize, Deserialize)]
+struct ToyCheckpoint {
+    args: ToyArgs,
+    results: Finished,
+}
+
+/// The result of each run of the grid, `None` while not finished.
+type Finished = Vec<Option<RunResult>>;
+
+const CHECKPOINT: &str = "checkpoint.json";
+const CHECKPOINT_KIND: &str = "toy";
+
+/// The settings and finished runs to start from: fresh ones, or those of
+/// the checkpoint named by `--resume`.
+fn starting_point(args: ToyArgs) -> anyhow::Result<(ToyArgs, PathBuf, Option<Finished>)> {
+    let Some(dir) = args.resume.clone() else {
+        validate(&args)?;
+        let out = args.runs_dir.join(&args.name);
+        return Ok((args, out, None));
+    };
+    let path = dir.join(CHECKPOINT);
+    let cp: ToyCheckpoint = red_core::checkpoint::load_checkpoint(&path, CHECKPOINT_KIND)
+        .with_context(|| format!("cannot resume from {}", dir.display()))?;
+    let mut saved = cp.args;
+    validate(&saved).with_context(|| format!("settings in {}", path.display()))?;
+    saved.quiet = args.quiet;
+    saved.threads = args.threads;
+    saved.resume = Some(dir.clone());
+    Ok((saved, dir, Some(cp.results)))
+}
+
 /// Runs the experiment and writes its outputs.
 ///
 /// # Errors
 /// Bad arguments, a failing run, or files that cannot be written.
 pub fn run(args: ToyArgs) -> anyhow::Result<()> {
-    validate(&args)?;
-    let out = args.runs_dir.join(&args.name);
+    let (args, out, resumed) = starting_point(args)?;
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let checkpoint_path = out.join(CHECKPOINT);
+    crate::interrupt::install();
     let start = std::time::Instant::now();
 
     let mut jobs = Vec::new();
@@ -418,41 +489,102 @@ pub fn run(args: ToyArgs) -> anyhow::Result<()> {
     );
     bar.set_message(format!("{} runs on {threads} threads", jobs.len()));
 
+    let finished: Finished = match resumed {
+        Some(saved) if saved.len() == jobs.len() => saved,
+        Some(saved) => bail!(
+            "{} holds {} runs but its settings make {}: the checkpoint is damaged",
+            checkpoint_path.display(),
+            saved.len(),
+            jobs.len()
+        ),
+        None => vec![None; jobs.len()],
+    };
+    let already = finished.iter().filter(|r| r.is_some()).count();
+    if already > 0 {
+        eprintln!(
+            "resuming {}: {already} of {} runs already done",
+            out.display(),
+            jobs.len()
+        );
+        bar.inc(already as u64 * evals_per_run);
+    }
+    // Finished results, saved to the checkpoint after each run; the lock
+    // also keeps two workers from writing the checkpoint at once.
+    let state = Mutex::new(ToyCheckpoint {
+        args: args.clone(),
+        results: finished,
+    });
+    let failures: Mutex<Vec<anyhow::Error>> = Mutex::new(Vec::new());
     let next = AtomicUsize::new(0);
-    let results: Mutex<Vec<Option<anyhow::Result<RunResult>>>> =
-        Mutex::new((0..jobs.len()).map(|_| None).collect());
     std::thread::scope(|scope| {
         for _ in 0..threads {
             scope.spawn(|| {
                 loop {
+                    if crate::interrupt::requested() {
+                        break;
+                    }
                     let i = next.fetch_add(1, Ordering::SeqCst);
                     let Some(job) = jobs.get(i) else { break };
-                    let r = run_one(&args, job, &|| bar.inc(1));
-                    if let Ok(mut all) = results.lock() {
-                        all[i] = Some(r);
+                    let done_before = state
+                        .lock()
+                        .map(|s| s.results[i].is_some())
+                        .unwrap_or(false);
+                    if done_before {
+                        continue;
+                    }
+                    let outcome = run_one(&args, job, &|| bar.inc(1))
+                        .with_context(|| {
+                            format!("run {} n={} seed={}", job.method.name(), job.n, job.seed)
+                        })
+                        .and_then(|r| {
+                            let mut s = state
+                                .lock()
+                                .map_err(|_| anyhow::anyhow!("a worker thread panicked"))?;
+                            s.results[i] = Some(r);
+                            red_core::checkpoint::save_checkpoint(
+                                &checkpoint_path,
+                                CHECKPOINT_KIND,
+                                &*s,
+                            )?;
+                            Ok(())
+                        });
+                    if let Err(e) = outcome {
+                        if let Ok(mut f) = failures.lock() {
+                            f.push(e);
+                        }
+                        // Stop the other workers too; what finished is saved.
+                        crate::interrupt::request();
+                        break;
                     }
                 }
             });
         }
     });
     bar.finish_and_clear();
-    let results = results
+    let failures = failures
         .into_inner()
         .map_err(|_| anyhow::anyhow!("a worker thread panicked"))?;
-    let mut done = Vec::with_capacity(jobs.len());
-    for (job, r) in jobs.iter().zip(results) {
-        let r = r.ok_or_else(|| {
-            anyhow::anyhow!(
-                "run {} n={} seed={} did not finish",
-                job.method.name(),
-                job.n,
-                job.seed
-            )
-        })?;
-        done.push(
-            r.with_context(|| format!("run {} n={} seed={}", job.method.name(), job.n, job.seed))?,
-        );
+    let state = state
+        .into_inner()
+        .map_err(|_| anyhow::anyhow!("a worker thread panicked"))?;
+    let saved = state.results.iter().filter(|r| r.is_some()).count();
+    if let Some(e) = failures.into_iter().next() {
+        return Err(e.context(format!(
+            "{saved} of {} finished runs are kept in {}",
+            jobs.len(),
+            checkpoint_path.display()
+        )));
     }
+    if saved < jobs.len() {
+        eprintln!(
+            "interrupted: {saved} of {} runs are saved in {}; continue with `red-cli toy --resume {}`",
+            jobs.len(),
+            checkpoint_path.display(),
+            out.display()
+        );
+        std::process::exit(130);
+    }
+    let done: Vec<RunResult> = state.results.into_iter().flatten().collect();
 
     write_config(&args, &out)?;
     write_metrics(&jobs, &done, &out)?;
@@ -495,6 +627,7 @@ fn write_config(args: &ToyArgs, out: &Path) -> anyhow::Result<()> {
         rnd: rnd_config(args),
         autoencoder: AutoencoderConfig {
             epochs: args.epochs,
+            standardize: args.standardize,
             ..AutoencoderConfig::default()
         },
         red_reward: RedRewardConfig::default(),

@@ -98,3 +98,134 @@ fn bad_arguments_are_refused_with_the_flag_named() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--n"));
 }
+
+/// A toy run with many short runs on one thread, so that it can be stopped
+/// part-way through.
+fn slow_toy(dir: &Path, name: &str) -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_red-cli"));
+    cmd.args([
+        "toy",
+        "--runs-dir",
+        dir.to_str().expect("utf-8 temp path"),
+        "--name",
+        name,
+        "--n",
+        "5,10",
+        "--seeds",
+        "3",
+        "--seed",
+        "7",
+        "--steps",
+        "1500",
+        "--eval-interval",
+        "500",
+        "--epochs",
+        "20",
+        "--threads",
+        "1",
+        "--quiet",
+    ]);
+    cmd
+}
+
+/// Starts `cmd`, waits for its first checkpoint, sends `signal` and waits
+/// for the process to end.
+fn stop_after_first_checkpoint(
+    mut cmd: Command,
+    checkpoint: &Path,
+    signal: &str,
+) -> std::process::ExitStatus {
+    let mut child = cmd.spawn().expect("red-cli starts");
+    let t0 = std::time::Instant::now();
+    while !checkpoint.exists() {
+        assert!(t0.elapsed().as_secs() < 120, "no checkpoint after 120 s");
+        if let Some(status) = child.try_wait().expect("wait") {
+            panic!("the run ended ({status}) before its first checkpoint");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let kill = Command::new("kill")
+        .args([signal, &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(kill.success());
+    child.wait().expect("wait")
+}
+
+fn resume(dir: &Path, name: &str) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_red-cli"))
+        .args(["toy", "--quiet", "--resume"])
+        .arg(dir.join(name))
+        .output()
+        .expect("red-cli runs")
+}
+
+#[test]
+fn interrupted_and_killed_runs_resume_to_the_same_numbers() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let full = slow_toy(dir.path(), "full").output().expect("red-cli runs");
+    assert!(
+        full.status.success(),
+        "{}",
+        String::from_utf8_lossy(&full.stderr)
+    );
+    let expected = std::fs::read_to_string(dir.path().join("full/metrics.csv")).expect("metrics");
+
+    for (name, signal) in [("ctrl-c", "-INT"), ("killed", "-KILL")] {
+        let checkpoint = dir.path().join(name).join("checkpoint.json");
+        let status = stop_after_first_checkpoint(slow_toy(dir.path(), name), &checkpoint, signal);
+        assert!(!status.success(), "{name}: the run was not stopped");
+        if signal == "-INT" {
+            assert_eq!(status.code(), Some(130), "Ctrl-C exits with 130");
+        }
+        assert!(
+            !dir.path().join(name).join("metrics.csv").exists(),
+            "{name}: a stopped run wrote final outputs"
+        );
+        // The checkpoint left behind is whole and readable.
+        let text = std::fs::read_to_string(&checkpoint).expect("checkpoint");
+        let v: serde_json::Value = serde_json::from_str(&text).expect("a whole JSON file");
+        let runs = v["state"]["results"].as_array().expect("results");
+        let saved = runs.iter().filter(|r| !r.is_null()).count();
+        assert!(
+            saved >= 1 && saved < runs.len(),
+            "{name}: {saved} of {} saved",
+            runs.len()
+        );
+
+        let out = resume(dir.path(), name);
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(String::from_utf8_lossy(&out.stderr).contains("already done"));
+        let got =
+            std::fs::read_to_string(dir.path().join(name).join("metrics.csv")).expect("metrics");
+        assert_eq!(
+            got, expected,
+            "{name}: resumed run differs from the uninterrupted one"
+        );
+    }
+}
+
+#[test]
+fn resume_refuses_a_folder_without_a_toy_checkpoint() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = resume(dir.path(), "nothing-here");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("cannot resume") && err.contains("checkpoint.json"),
+        "{err}"
+    );
+    std::fs::create_dir_all(dir.path().join("other")).expect("dir");
+    std::fs::write(
+        dir.path().join("other/checkpoint.json"),
+        r#"{"format":"red-checkpoint","version":1,"kind":"drive","state":{}}"#,
+    )
+    .expect("write");
+    let out = resume(dir.path(), "other");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not a `toy` run"));
+}

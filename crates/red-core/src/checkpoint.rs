@@ -77,13 +77,17 @@ struct EnvelopeOut<'a, T> {
     state: &'a T,
 }
 
+/// The envelope as read: the state stays raw text until the header has
+/// been checked, so a checkpoint of another kind or version is reported as
+/// such rather than as a parse error of its state.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct EnvelopeIn<T> {
+struct EnvelopeIn<'a> {
     format: String,
     version: u32,
     kind: String,
-    state: T,
+    #[serde(borrow)]
+    state: &'a serde_json::value::RawValue,
 }
 
 /// Saves `state` atomically as a checkpoint of a run of `kind` (e.g.
@@ -122,7 +126,7 @@ pub fn load_checkpoint<T: DeserializeOwned>(path: &Path, kind: &str) -> Result<T
         field: "checkpoint".into(),
         reason: format!("{}: {reason}", path.display()),
     };
-    let env: EnvelopeIn<T> = serde_json::from_slice(&bytes)
+    let env: EnvelopeIn<'_> = serde_json::from_slice(&bytes)
         .map_err(|e| bad(format!("not a readable checkpoint: {e}")))?;
     if env.format != CHECKPOINT_FORMAT {
         return Err(bad(format!(
@@ -142,7 +146,8 @@ pub fn load_checkpoint<T: DeserializeOwned>(path: &Path, kind: &str) -> Result<T
             env.kind
         )));
     }
-    Ok(env.state)
+    serde_json::from_str(env.state.get())
+        .map_err(|e| bad(format!("the saved state does not parse: {e}")))
 }
 
 #[cfg(test)]

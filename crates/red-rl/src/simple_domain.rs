@@ -133,8 +133,28 @@ pub fn simple_domain() -> TimeLimit<SimpleDomain> {
 /// An expert dataset of `n` pairs `(s, sign(s))` with `s ~ U(-1, 1)`, as one
 /// trajectory (the task is stateless, so the grouping carries nothing).
 pub fn expert_demos<R: rand::Rng + ?Sized>(n: usize, rng: &mut R) -> Demos {
+    let states = (0..n).map(|_| rng.random_range(-1.0..=1.0)).collect();
+    demos_of_states(states)
+}
+
+/// An expert dataset of `n` pairs `(s, sign(s))` whose states are drawn by
+/// stratified sampling: `s_i ~ U(-1 + 2i/n, -1 + 2(i+1)/n)` for
+/// `i = 0..n`. Each state is still uniform on its stratum, so the set as a
+/// whole covers `[-1, 1]` as a uniform draw does on average, but it cannot
+/// miss a whole side: with `n = 5` independent draws, one set in 16 holds
+/// states of a single sign, from which no estimator can tell what the
+/// expert does on the other side.
+pub fn expert_demos_stratified<R: rand::Rng + ?Sized>(n: usize, rng: &mut R) -> Demos {
+    let width = 2.0 / n as f64;
+    let states = (0..n)
+        .map(|i| -1.0 + width * (i as f64 + rng.random_range(0.0..1.0)))
+        .collect();
+    demos_of_states(states)
+}
+
+fn demos_of_states(states: Vec<f64>) -> Demos {
     let mut demos = Demos::new(ENV_ID, 1, 1, None);
-    let observations: Vec<Vec<f64>> = (0..n).map(|_| vec![rng.random_range(-1.0..=1.0)]).collect();
+    let observations: Vec<Vec<f64>> = states.into_iter().map(|s| vec![s]).collect();
     let actions = observations
         .iter()
         .map(|o| vec![expert_action(o[0])])
@@ -195,6 +215,22 @@ mod tests {
         assert!(env.step(&[2.0]).is_err());
         assert!(env.step(&[0.5]).is_err());
         assert!(env.step(&[f64::NAN]).is_err());
+    }
+
+    #[test]
+    fn stratified_demos_cover_each_stratum() {
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        let demos = expert_demos_stratified(5, &mut rng);
+        let (s, a) = demos.pairs();
+        for i in 0..5 {
+            let lo = -1.0 + 0.4 * i as f64;
+            assert!(
+                (lo..lo + 0.4).contains(&s[[i, 0]]),
+                "state {i}: {}",
+                s[[i, 0]]
+            );
+            assert_eq!(a[[i, 0]], expert_action(s[[i, 0]]));
+        }
     }
 
     #[test]
