@@ -267,6 +267,44 @@ fn policies_checkpoints_and_configs() {
 }
 
 #[test]
+fn training_states_and_checkpoint_envelopes() {
+    // A TRPO trainer's whole state (networks, optimiser, normaliser, RNGs),
+    // what `mujoco train` checkpoints hold.
+    let cfg = red_rl::trpo::TrpoConfig {
+        policy: red_rl::policy::GaussianPolicyConfig {
+            hidden: vec![4],
+            ..red_rl::policy::GaussianPolicyConfig::default()
+        },
+        value_hidden: vec![4],
+        ..red_rl::trpo::TrpoConfig::default()
+    };
+    let trainer = red_rl::trpo::TrpoTrainer::new(cfg, 3, 2, None, 5).expect("trainer");
+    let seed = trainer.to_json().expect("json").into_bytes();
+    fuzz("trpo trainer state", &seed, |b| {
+        text(b).is_some_and(|s| red_rl::trpo::TrpoTrainer::from_json(s).is_ok())
+    });
+
+    // The checkpoint envelope of every long command, here around a state
+    // of nested numbers, strings and options like a run's.
+    #[derive(serde::Serialize, serde::Deserialize)]
+    struct State {
+        args: Vec<String>,
+        results: Vec<Option<Vec<(u64, f64)>>>,
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("checkpoint.json");
+    let state = State {
+        args: vec!["--n".into(), "5".into()],
+        results: vec![Some(vec![(0, -0.25), (500, 0.5)]), None],
+    };
+    red_core::checkpoint::save_checkpoint(&path, "toy", &state).expect("save");
+    let seed = std::fs::read(&path).expect("read");
+    fuzz("checkpoint envelope", &seed, |b| {
+        red_core::checkpoint::parse_checkpoint::<State>(b, "toy").is_ok()
+    });
+}
+
+#[test]
 fn the_guards_catch_panics_and_oversized_allocations() {
     let seed = b"{}".to_vec();
     let panicking = std::panic::catch_unwind(|| {

@@ -229,3 +229,98 @@ fn resume_refuses_a_folder_without_a_toy_checkpoint() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("not a `toy` run"));
 }
+
+/// `red-cli toy --resume` on byte-mutated checkpoints of a finished tiny
+/// run: the command must end without a panic (exit status 101) or a hang,
+/// and its errors name the file or the setting at fault. Inputs:
+/// `RED_FUZZ_CASES / 30` (default 50); each one starts a process.
+#[test]
+fn mutated_toy_checkpoints_never_panic() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let made = Command::new(env!("CARGO_BIN_EXE_red-cli"))
+        .args([
+            "toy",
+            "--n",
+            "3",
+            "--methods",
+            "red",
+            "--seeds",
+            "1",
+            "--steps",
+            "100",
+        ])
+        .args([
+            "--eval-interval",
+            "100",
+            "--epochs",
+            "2",
+            "--quiet",
+            "--runs-dir",
+        ])
+        .arg(dir.path())
+        .args(["--name", "seed"])
+        .output()
+        .expect("red-cli runs");
+    assert!(
+        made.status.success(),
+        "{}",
+        String::from_utf8_lossy(&made.stderr)
+    );
+    let seed = std::fs::read(dir.path().join("seed/checkpoint.json")).expect("checkpoint");
+    let n = std::env::var("RED_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .unwrap_or(1_500)
+        / 30;
+    let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut next = move || {
+        // xorshift64*: enough to pick edits; the test needs no rand crate.
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        state.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    };
+    let mut ok = 0;
+    for k in 0..n {
+        let mut bytes = seed.clone();
+        for _ in 0..1 + next() % 4 {
+            let at = (next() as usize) % bytes.len().max(1);
+            match next() % 4 {
+                0 if !bytes.is_empty() => bytes[at] ^= 1 << (next() % 8),
+                1 if !bytes.is_empty() => {
+                    bytes[at] = b"0123456789-.e,:{}[]\"n"[(next() % 20) as usize]
+                }
+                2 => bytes.insert(at.min(bytes.len()), (next() % 256) as u8),
+                _ => bytes.truncate(at),
+            }
+        }
+        let run = dir.path().join(format!("case{k}"));
+        std::fs::create_dir_all(&run).expect("dir");
+        std::fs::write(run.join("checkpoint.json"), &bytes).expect("write");
+        let start = std::time::Instant::now();
+        let out = Command::new(env!("CARGO_BIN_EXE_red-cli"))
+            .args(["toy", "--quiet", "--resume"])
+            .arg(&run)
+            .output()
+            .expect("red-cli runs");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_ne!(out.status.code(), Some(101), "case {k} panicked: {stderr}");
+        assert!(
+            start.elapsed().as_secs() < 60,
+            "case {k} took {:?}",
+            start.elapsed()
+        );
+        if out.status.success() {
+            ok += 1;
+        } else {
+            assert!(
+                stderr.contains("checkpoint.json") || stderr.contains("--"),
+                "case {k}: the error names neither the file nor a setting: {stderr}"
+            );
+        }
+        std::fs::remove_dir_all(&run).expect("clean");
+    }
+    println!(
+        "fuzz toy checkpoint through the CLI: {n} inputs, {ok} resumed without error, none panicked"
+    );
+}

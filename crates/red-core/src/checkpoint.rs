@@ -122,11 +122,27 @@ pub fn load_checkpoint<T: DeserializeOwned>(path: &Path, kind: &str) -> Result<T
         path: path.to_path_buf(),
         source,
     })?;
+    parse_checkpoint(&bytes, kind).map_err(|e| match e {
+        Error::InvalidConfig { field, reason } => Error::InvalidConfig {
+            field,
+            reason: format!("{}: {reason}", path.display()),
+        },
+        other => other,
+    })
+}
+
+/// Parses the bytes of a checkpoint of a run of `kind` (what
+/// [`load_checkpoint`] does after reading the file).
+///
+/// # Errors
+/// [`Error::InvalidConfig`] when the bytes are not a checkpoint, have
+/// another version, hold another kind of run, or the state does not parse.
+pub fn parse_checkpoint<T: DeserializeOwned>(bytes: &[u8], kind: &str) -> Result<T> {
     let bad = |reason: String| Error::InvalidConfig {
         field: "checkpoint".into(),
-        reason: format!("{}: {reason}", path.display()),
+        reason,
     };
-    let env: EnvelopeIn<'_> = serde_json::from_slice(&bytes)
+    let env: EnvelopeIn<'_> = serde_json::from_slice(bytes)
         .map_err(|e| bad(format!("not a readable checkpoint: {e}")))?;
     if env.format != CHECKPOINT_FORMAT {
         return Err(bad(format!(
