@@ -1,0 +1,243 @@
+//! Every serde config of the workspace rejects unknown fields, and its
+//! `validate()` rejects nonsense numbers with a message naming the field.
+//! For each config: the default round-trips and validates; an extra field
+//! is refused by name; each listed bad value parses but is refused by
+//! `validate()` with the field's name in the message.
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+use serde_json::{Value, json};
+
+/// Checks one config type. `bad` lists `(json pointer, bad value, field
+/// name the error must contain)`.
+fn check<T, E>(name: &str, validate: impl Fn(&T) -> Result<(), E>, bad: &[(&str, Value, &str)])
+where
+    T: Serialize + DeserializeOwned + Default,
+    E: std::fmt::Display,
+{
+    let default = serde_json::to_value(T::default()).expect("serialise");
+    let back: T = serde_json::from_value(default.clone()).expect("the default parses");
+    if let Err(e) = validate(&back) {
+        panic!("{name}: the default does not validate: {e}");
+    }
+
+    let mut extra = default.clone();
+    extra
+        .as_object_mut()
+        .unwrap_or_else(|| panic!("{name}: not a JSON object"))
+        .insert("no_such_setting".into(), json!(1));
+    let err = serde_json::from_value::<T>(extra)
+        .err()
+        .unwrap_or_else(|| panic!("{name}: an unknown field was accepted"));
+    assert!(
+        err.to_string().contains("no_such_setting"),
+        "{name}: the error does not name the unknown field: {err}"
+    );
+
+    assert!(!bad.is_empty(), "{name}: no bad values listed");
+    for (pointer, value, field) in bad {
+        let mut v = default.clone();
+        *v.pointer_mut(pointer)
+            .unwrap_or_else(|| panic!("{name}: no field at {pointer}")) = value.clone();
+        let parsed: T = serde_json::from_value(v)
+            .unwrap_or_else(|e| panic!("{name}: {pointer} = {value} does not parse: {e}"));
+        let err = validate(&parsed)
+            .err()
+            .unwrap_or_else(|| panic!("{name}: {pointer} = {value} was accepted"));
+        assert!(
+            err.to_string().contains(field),
+            "{name}: {pointer} = {value}: the error does not name `{field}`: {err}"
+        );
+    }
+}
+
+#[test]
+fn network_and_optimiser_configs() {
+    check::<red_nets::MlpConfig, _>(
+        "MlpConfig",
+        |c| c.validate(),
+        &[
+            ("/input", json!(0), "input"),
+            ("/output", json!(0), "output"),
+        ],
+    );
+    check::<red_nets::AdamConfig, _>(
+        "AdamConfig",
+        |c| c.validate(),
+        &[
+            ("/lr", json!(-1e-3), "lr"),
+            ("/beta1", json!(1.5), "beta1"),
+            ("/beta2", json!(-0.1), "beta2"),
+            ("/eps", json!(0.0), "eps"),
+            ("/weight_decay", json!(-1.0), "weight_decay"),
+        ],
+    );
+    check::<red_nets::SgdConfig, _>(
+        "SgdConfig",
+        |c| c.validate(),
+        &[
+            ("/lr", json!(0.0), "lr"),
+            ("/momentum", json!(1.5), "momentum"),
+        ],
+    );
+}
+
+#[test]
+fn learner_configs() {
+    use red_rl::{bc, dqn, gae, gail, gmmil, policy, svg, trpo};
+    check::<dqn::DqnConfig, _>(
+        "DqnConfig",
+        |c| c.validate(),
+        &[
+            ("/learning_rate", json!(-1e-4), "learning_rate"),
+            ("/gamma", json!(1.5), "gamma"),
+            ("/batch_size", json!(0), "batch_size"),
+            ("/buffer_size", json!(0), "buffer_size"),
+            ("/start_epsilon", json!(2.0), "start_epsilon"),
+        ],
+    );
+    check::<trpo::TrpoConfig, _>(
+        "TrpoConfig",
+        |c| c.validate(),
+        &[
+            ("/max_kl", json!(-0.01), "max_kl"),
+            ("/steps_per_batch", json!(0), "steps_per_batch"),
+            ("/value_lr", json!(-1.0), "value_lr"),
+            ("/value_batch_size", json!(0), "value_batch_size"),
+            ("/cg_damping", json!(-0.1), "cg_damping"),
+            ("/gae/gamma", json!(1.5), "gamma"),
+        ],
+    );
+    check::<gae::GaeConfig, _>(
+        "GaeConfig",
+        |c| c.validate(),
+        &[
+            ("/gamma", json!(-0.5), "gamma"),
+            ("/lambda", json!(2.0), "lambda"),
+        ],
+    );
+    check::<bc::BcConfig, _>(
+        "BcConfig",
+        |c| c.validate(),
+        &[
+            ("/lr", json!(-3e-4), "lr"),
+            ("/batch_size", json!(0), "batch_size"),
+        ],
+    );
+    check::<gail::GailConfig, _>(
+        "GailConfig",
+        |c| c.validate(),
+        &[
+            ("/learning_rate", json!(0.0), "learning_rate"),
+            ("/epochs", json!(0), "epochs"),
+        ],
+    );
+    check::<gmmil::GmmilConfig, _>(
+        "GmmilConfig",
+        |c| c.validate(),
+        &[("/median_sample", json!(0), "median_sample")],
+    );
+    check::<policy::GaussianPolicyConfig, _>(
+        "GaussianPolicyConfig",
+        |c| c.validate(),
+        &[("/init_log_std", json!(100.0), "init_log_std")],
+    );
+    check::<svg::SvgConfig, _>(
+        "SvgConfig",
+        |c| c.validate(),
+        &[
+            ("/gamma", json!(1.0), "gamma"),
+            ("/policy_lr", json!(-1e-4), "policy_lr"),
+            ("/batch_size", json!(0), "batch_size"),
+            ("/iw_clip", json!(0.5), "iw_clip"),
+            ("/target_tau", json!(0.0), "target_tau"),
+        ],
+    );
+}
+
+#[test]
+fn support_and_reward_configs() {
+    use red_support::{
+        AutoencoderConfig, KernelPcaConfig, RedRewardConfig, RndConfig, TerminalHeuristicConfig,
+    };
+    check::<RndConfig, _>(
+        "RndConfig",
+        |c| c.validate(),
+        &[
+            ("/epochs", json!(0), "epochs"),
+            ("/batch_size", json!(0), "batch_size"),
+            ("/output", json!(0), "output"),
+            ("/ensemble", json!(0), "ensemble"),
+            ("/adam/lr", json!(-1.0), "lr"),
+        ],
+    );
+    check::<AutoencoderConfig, _>(
+        "AutoencoderConfig",
+        |c| c.validate(),
+        &[
+            ("/epochs", json!(0), "epochs"),
+            ("/batch_size", json!(0), "batch_size"),
+        ],
+    );
+    check::<KernelPcaConfig, _>(
+        "KernelPcaConfig",
+        |c| c.validate(),
+        &[("/tikhonov", json!(-1.0), "tikhonov")],
+    );
+    check::<RedRewardConfig, _>(
+        "RedRewardConfig",
+        |c| c.validate(),
+        &[("/sigma1", json!({"fixed": -1.0}), "sigma1")],
+    );
+    check::<TerminalHeuristicConfig, _>(
+        "TerminalHeuristicConfig",
+        |c| c.validate(),
+        &[
+            ("/sigma2", json!(-1.0), "sigma2"),
+            ("/sigma3", json!(-1.0), "sigma3"),
+        ],
+    );
+}
+
+#[test]
+fn environment_configs() {
+    check::<red_drive::DriveConfig, _>(
+        "DriveConfig",
+        |c| c.validate(),
+        &[
+            ("/road_length", json!(-5.0), "road_length"),
+            ("/lane_width", json!(0.0), "lane_width"),
+            ("/lidar_range", json!(-1.0), "lidar_range"),
+            ("/time_limit", json!(0), "time_limit"),
+        ],
+    );
+    use red_mujoco::{AntConfig, HalfCheetahConfig, HopperConfig, ReacherConfig, Walker2dConfig};
+    check::<HopperConfig, _>(
+        "HopperConfig",
+        |c| c.validate(),
+        &[
+            ("/frame_skip", json!(0), "frame_skip"),
+            ("/reset_noise_scale", json!(-1.0), "reset_noise_scale"),
+        ],
+    );
+    check::<Walker2dConfig, _>(
+        "Walker2dConfig",
+        |c| c.validate(),
+        &[("/frame_skip", json!(0), "frame_skip")],
+    );
+    check::<HalfCheetahConfig, _>(
+        "HalfCheetahConfig",
+        |c| c.validate(),
+        &[("/frame_skip", json!(0), "frame_skip")],
+    );
+    check::<AntConfig, _>(
+        "AntConfig",
+        |c| c.validate(),
+        &[("/frame_skip", json!(0), "frame_skip")],
+    );
+    check::<ReacherConfig, _>(
+        "ReacherConfig",
+        |c| c.validate(),
+        &[("/frame_skip", json!(0), "frame_skip")],
+    );
+}
