@@ -115,7 +115,9 @@ pub fn run(args: DriveArgs) -> anyhow::Result<()> {
         Some(DriveCommand::Expert(a)) => expert(a),
         Some(DriveCommand::Record(a)) => record(a),
         Some(DriveCommand::Render(a)) => render(a),
-        None if args.train.demo.is_some() => crate::drive_train::run(args.train),
+        None if args.train.demo.is_some() || args.train.resume.is_some() => {
+            crate::drive_train::run(args.train)
+        }
         None => {
             let mut cmd = crate::Cli::command();
             cmd.build();

@@ -37,7 +37,6 @@ mod demo;
 mod doctor;
 mod drive;
 mod drive_train;
-#[allow(dead_code)] // wired into the long commands one by one
 mod interrupt;
 mod mujoco;
 mod plot;

@@ -1,39 +1,87 @@
-//! `red-cli drive --demo FILE` end to end with a tiny budget: outputs exist,
-//! the same seed gives the same metrics, bad demos are refused clearly.
+//! `red-cli drive --demo FILE` end to end with a tiny budget: outputs exist
+//! for every method, the same seed gives the same numbers, an interrupted
+//! run resumes to the numbers of an uninterrupted one, bad demos and bad
+//! resumes are refused clearly.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 fn demo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/drive-scripted-expert.json")
 }
 
-fn train(out: &Path, name: &str, seed: u64) -> std::process::Output {
+/// Small networks and short warm-ups so every method trains in about a
+/// second.
+const TINY: &str = r#"{
+  "policy": {"hidden": [16], "init_log_std": -2.0},
+  "svg": {"hidden": [16], "learning_starts": 100, "policy_delay": 100, "batch_size": 16},
+  "gail": {"hidden": [16]},
+  "autoencoder": {"hidden": 32},
+  "sigma1": {"folds": 2},
+  "reward_update_pairs": 150,
+  "select_every": 200,
+  "select_episodes": 1
+}"#;
+
+fn cli(args: &[&str], dir: &Path) -> Output {
+    let cfg = dir.join("tiny.json");
+    std::fs::write(&cfg, TINY).unwrap();
     Command::new(env!("CARGO_BIN_EXE_red-cli"))
-        .args(["drive", "--demo"])
-        .arg(demo())
-        .args(["--steps", "1200", "--rnd-epochs", "2", "--bc-epochs", "3"])
-        .args([
-            "--eval-runs",
-            "2",
-            "--seed",
-            &seed.to_string(),
-            "--name",
-            name,
-        ])
+        .args(["drive", "--train-config"])
+        .arg(&cfg)
+        .args(["--rnd-epochs", "2", "--bc-epochs", "3", "--eval-runs", "2"])
         .arg("--out-dir")
-        .arg(out)
+        .arg(dir)
+        .args(args)
         .output()
         .unwrap()
 }
 
+fn train(dir: &Path, name: &str, methods: &str, extra: &[&str]) -> Output {
+    let demo = demo();
+    let mut args = vec![
+        "--demo",
+        demo.to_str().unwrap(),
+        "--methods",
+        methods,
+        "--steps",
+        "400",
+        "--seed",
+        "3",
+        "--name",
+        name,
+    ];
+    args.extend_from_slice(extra);
+    cli(&args, dir)
+}
+
+/// eval.json without its wall time, and metrics.csv.
+fn numbers(dir: &Path) -> (serde_json::Value, String) {
+    let mut eval: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("eval.json")).unwrap()).unwrap();
+    eval.as_object_mut().unwrap().remove("wall_time_s");
+    let metrics = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
+    (eval, metrics)
+}
+
+fn ok(o: &Output) {
+    assert!(
+        o.status.success(),
+        "status {:?}\n{}",
+        o.status,
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
 #[test]
-fn tiny_run_writes_outputs_and_is_reproducible() {
+fn all_methods_tiny_run_writes_outputs_and_is_reproducible() {
     let dir = tempfile::tempdir().unwrap();
-    let a = train(dir.path(), "a", 3);
-    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    let a = train(dir.path(), "a", "all", &[]);
+    ok(&a);
     let table = String::from_utf8_lossy(&a.stdout);
-    for row in ["expert", "red", "bc", "% road"] {
+    for row in [
+        "expert", "red", "ae", "gail", "gmmil", "bc", "% road", "TRUE",
+    ] {
         assert!(table.contains(row), "{table}");
     }
     for f in [
@@ -46,34 +94,107 @@ fn tiny_run_writes_outputs_and_is_reproducible() {
         let p = dir.path().join("a").join(f);
         assert!(std::fs::metadata(&p).unwrap().len() > 0, "{}", p.display());
     }
-    let metrics = std::fs::read_to_string(dir.path().join("a/metrics.csv")).unwrap();
-    assert!(metrics.lines().count() > 1, "{metrics}");
-    let eval: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("a/eval.json")).unwrap())
+    // A finished run leaves no checkpoint behind.
+    assert!(!dir.path().join("a/checkpoint.json").exists());
+    let (eval, metrics) = numbers(&dir.path().join("a"));
+    let methods = eval["methods"].as_array().unwrap();
+    assert_eq!(methods.len(), 5);
+    for m in methods {
+        assert_eq!(m["distances"].as_array().unwrap().len(), 2, "{m}");
+        if m["method"] != "bc" {
+            assert!(m["final_policy"].is_object(), "{m}");
+            assert!(m["best_true_distance_policy"].is_object(), "{m}");
+        }
+    }
+    for m in ["red", "ae", "gail", "gmmil"] {
+        assert!(metrics.contains(&format!("{m},train,")), "{metrics}");
+        assert!(metrics.contains(&format!("{m},check,")), "{metrics}");
+    }
+    let config: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("a/config.json")).unwrap())
             .unwrap();
-    assert_eq!(eval["methods"].as_array().unwrap().len(), 2);
-    let b = train(dir.path(), "b", 3);
-    assert!(b.status.success());
-    let metrics_b = std::fs::read_to_string(dir.path().join("b/metrics.csv")).unwrap();
-    assert_eq!(metrics, metrics_b);
+    assert_eq!(config["train"]["steps"], 400);
+    assert_eq!(config["seed"], 3);
+
+    let b = train(dir.path(), "b", "all", &[]);
+    ok(&b);
+    assert_eq!(numbers(&dir.path().join("b")), (eval, metrics));
 }
 
 #[test]
-fn bad_demo_is_refused_with_a_clear_error() {
+fn interrupted_run_resumes_to_the_same_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = train(
+        dir.path(),
+        "whole",
+        "red,gail",
+        &["--checkpoint-every", "150"],
+    );
+    ok(&whole);
+
+    // Interrupted inside RED, then again inside GAIL (an adaptive reward).
+    let first = train(
+        dir.path(),
+        "cut",
+        "red,gail",
+        &["--checkpoint-every", "150", "--interrupt-after", "250"],
+    );
+    assert_eq!(
+        first.status.code(),
+        Some(130),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let err = String::from_utf8_lossy(&first.stderr);
+    assert!(err.contains("--resume"), "{err}");
+    let cut = dir.path().join("cut");
+    assert!(cut.join("checkpoint.json").exists());
+    let resume = |extra: &[&str]| {
+        let mut args = vec!["--resume", cut.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        cli(&args, dir.path())
+    };
+    // The same step limit now interrupts GAIL once it passes it.
+    let second = resume(&["--interrupt-after", "300"]);
+    assert_eq!(
+        second.status.code(),
+        Some(130),
+        "{}",
+        String::from_utf8_lossy(&second.stderr)
+    );
+    let last = resume(&[]);
+    ok(&last);
+    assert_eq!(numbers(&cut), numbers(&dir.path().join("whole")));
+}
+
+#[test]
+fn bad_demo_and_bad_resume_are_refused_with_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string(demo()).unwrap();
     let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
     v["env_id"] = serde_json::Value::String("hopper".into());
     let bad = dir.path().join("bad.json");
     std::fs::write(&bad, serde_json::to_string(&v).unwrap()).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_red-cli"))
-        .args(["drive", "--demo"])
-        .arg(&bad)
-        .arg("--out-dir")
-        .arg(dir.path())
-        .output()
-        .unwrap();
+    let out = cli(&["--demo", bad.to_str().unwrap()], dir.path());
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("hopper") && err.contains("drive"), "{err}");
+
+    let none = dir.path().join("nothing-here");
+    let out = cli(&["--resume", none.to_str().unwrap()], dir.path());
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("checkpoint.json"), "{err}");
+
+    let out = cli(
+        &[
+            "--demo",
+            demo().to_str().unwrap(),
+            "--methods",
+            "red,dagger",
+        ],
+        dir.path(),
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("dagger"));
 }

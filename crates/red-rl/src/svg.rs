@@ -54,6 +54,13 @@ pub trait DifferentiableReward {
         states: ArrayView2<'_, f64>,
         actions: ArrayView2<'_, f64>,
     ) -> Result<(Array1<f64>, Array2<f64>)>;
+
+    /// Whether the reward changes during training (GAIL's discriminator,
+    /// GMMIL's witness). [`Svg1`] then recomputes the rewards of replayed
+    /// transitions at each value update instead of using the stored ones.
+    fn is_adaptive(&self) -> bool {
+        false
+    }
 }
 
 impl<M: SupportModel> DifferentiableReward for RedReward<M> {
@@ -186,6 +193,9 @@ struct Replay {
     actions: Vec<Vec<f64>>,
     next_states: Vec<Vec<f64>>,
     rewards: Vec<f64>,
+    /// The terminal heuristic's adjustment, kept apart from `rewards` so an
+    /// adaptive reward can be recomputed without losing it.
+    bonus: Vec<f64>,
     terminated: Vec<bool>,
     behaviour_logp: Vec<f64>,
     next: usize,
@@ -200,8 +210,10 @@ pub struct SvgBatch {
     pub actions: Array2<f64>,
     /// Raw next states `(b, obs_dim)`.
     pub next_states: Array2<f64>,
-    /// Stored (imitation) rewards.
+    /// Stored (imitation) rewards, the terminal adjustment included.
     pub rewards: Vec<f64>,
+    /// The terminal adjustment alone (0 except at an episode's last step).
+    pub bonus: Vec<f64>,
     /// Whether the next state is terminal.
     pub terminated: Vec<bool>,
     /// Log-probability of each action under the behaviour policy.
@@ -247,8 +259,10 @@ pub struct EpisodeReport {
     pub info: Info,
 }
 
-/// An SVG(1)-ER learner; see the module documentation.
-#[derive(Debug, Clone)]
+/// An SVG(1)-ER learner; see the module documentation. It serialises
+/// whole (networks, optimiser moments, replay, step count), so a run can be
+/// checkpointed between episodes and resumed exactly.
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Svg1 {
     config: SvgConfig,
     policy: GaussianPolicy,
@@ -305,6 +319,7 @@ impl Svg1 {
                 actions: Vec::new(),
                 next_states: Vec::new(),
                 rewards: Vec::new(),
+                bonus: Vec::new(),
                 terminated: Vec::new(),
                 behaviour_logp: Vec::new(),
                 next: 0,
@@ -388,6 +403,7 @@ impl Svg1 {
             r.actions.push(action.to_vec());
             r.next_states.push(next_state.to_vec());
             r.rewards.push(reward);
+            r.bonus.push(0.0);
             r.terminated.push(terminated);
             r.behaviour_logp.push(behaviour_logp);
         } else {
@@ -396,6 +412,7 @@ impl Svg1 {
             r.actions[i] = action.to_vec();
             r.next_states[i] = next_state.to_vec();
             r.rewards[i] = reward;
+            r.bonus[i] = 0.0;
             r.terminated[i] = terminated;
             r.behaviour_logp[i] = behaviour_logp;
         }
@@ -412,6 +429,7 @@ impl Svg1 {
         }
         let i = (r.next + r.capacity - 1) % r.capacity;
         r.rewards[i] += delta;
+        r.bonus[i] += delta;
     }
 
     /// Draws `n` transitions uniformly with replacement.
@@ -433,6 +451,7 @@ impl Svg1 {
             actions: Array2::zeros((n, a)),
             next_states: Array2::zeros((n, o)),
             rewards: Vec::with_capacity(n),
+            bonus: Vec::with_capacity(n),
             terminated: Vec::with_capacity(n),
             behaviour_logp: Vec::with_capacity(n),
         };
@@ -446,6 +465,7 @@ impl Svg1 {
                 b.actions[[row, j]] = r.actions[i][j];
             }
             b.rewards.push(r.rewards[i]);
+            b.bonus.push(r.bonus[i]);
             b.terminated.push(r.terminated[i]);
             b.behaviour_logp.push(r.behaviour_logp[i]);
         }
@@ -645,9 +665,17 @@ impl Svg1 {
         let bs = self.config.batch_size;
         let b = self.sample(bs, rng)?;
         let model_loss = self.update_model(&b)?;
-        let b = self.sample(bs, rng)?;
+        self.check_finite("SVG model loss", model_loss)?;
+        let mut b = self.sample(bs, rng)?;
+        if reward.is_adaptive() {
+            let (r, _) = reward.reward_and_grad(b.states.view(), b.actions.view())?;
+            for (i, ri) in r.iter().enumerate() {
+                b.rewards[i] = ri + b.bonus[i];
+            }
+        }
         let w = self.importance_weights(&b)?;
         let value_loss = self.update_value(&b, &w)?;
+        self.check_finite("SVG value loss", value_loss)?;
         let policy_objective = if with_policy {
             let b = self.sample(bs, rng)?;
             let inputs = self.policy_inputs(&b)?;
@@ -662,60 +690,62 @@ impl Svg1 {
         })
     }
 
-    /// Runs `steps` environment steps with the stochastic policy, storing
-    /// transitions with the imitation reward of `reward` (never the
-    /// environment's) and updating as configured. At an episode's end,
-    /// `terminal(final_reward)` is added to the last stored reward (RED's
-    /// terminal heuristic; pass `|_| 0.0` for none) and `on_episode` gets
-    /// a report. Episodes are reset with seeds drawn from `rng`, or every
-    /// one with `reset_seed` when given (one fixed track).
+    fn check_finite(&self, what: &str, v: f64) -> Result<()> {
+        if v.is_finite() {
+            Ok(())
+        } else {
+            Err(Error::NonFinite {
+                what: what.into(),
+                step: self.env_steps,
+            })
+        }
+    }
+
+    /// Runs one episode with the stochastic policy, at most `max_steps`
+    /// environment steps, storing transitions with the imitation reward of
+    /// `reward` (never the environment's) and updating as configured. The
+    /// episode starts with `env.reset(Some(reset_seed))` or, without one,
+    /// a seed drawn from `rng`. At the episode's end `terminal(final_reward)`
+    /// is added to the last stored reward (RED's terminal heuristic; pass
+    /// `|_| 0.0` for none).
+    ///
+    /// Returns the episode's report and its state-action pairs; `finished`
+    /// is false when the step budget cut it short.
     ///
     /// # Errors
-    /// Environment, shape and update errors.
-    #[allow(clippy::too_many_arguments)]
-    pub fn train<E: Env + ?Sized, R: Rng + ?Sized>(
+    /// Environment, shape and update errors; [`Error::NonFinite`] naming a
+    /// non-finite observation, imitation reward, loss or gradient and the
+    /// environment step where it appeared.
+    pub fn run_episode<E: Env + ?Sized, R: Rng + ?Sized>(
         &mut self,
         env: &mut E,
         reward: &dyn DifferentiableReward,
-        steps: u64,
         reset_seed: Option<u64>,
         terminal: &dyn Fn(f64) -> f64,
+        max_steps: u64,
         rng: &mut R,
-        on_episode: &mut dyn FnMut(&EpisodeReport),
-    ) -> Result<()> {
-        match (env.observation_space(), env.action_space()) {
-            (Space::Box(o), Space::Box(a))
-                if o.dim() == self.policy.obs_dim() && a.dim() == self.policy.act_dim() => {}
-            _ => {
-                return Err(Error::ShapeMismatch {
-                    what: "SVG environment spaces".into(),
-                    expected: format!(
-                        "boxes of {} and {}",
-                        self.policy.obs_dim(),
-                        self.policy.act_dim()
-                    ),
-                    got: "other spaces".into(),
-                });
-            }
-        }
-        let seed = |rng: &mut R| reset_seed.unwrap_or_else(|| rng.random());
-        let s0 = seed(rng);
-        let (mut obs, _) = env.reset(Some(s0))?;
+    ) -> Result<EpisodeOutcome> {
+        self.check_spaces(env)?;
+        let seed = reset_seed.unwrap_or_else(|| rng.random());
+        let (mut obs, _) = env.reset(Some(seed))?;
+        self.check_observation(&obs)?;
+        let (o, ad) = (self.policy.obs_dim(), self.policy.act_dim());
+        let (mut states, mut actions) = (Vec::new(), Vec::new());
         let (mut true_ret, mut im_ret, mut len) = (0.0, 0.0, 0usize);
-        for _ in 0..steps {
+        let mut finished = false;
+        let mut info = Info::new();
+        while (len as u64) < max_steps {
             let (a, logp) = self.act(&obs, rng)?;
             let step = env.step(&a)?;
+            self.check_observation(&step.observation)?;
             let ov = ArrayView2::from_shape((1, obs.len()), &obs).map_err(shape_err)?;
             let av = ArrayView2::from_shape((1, a.len()), &a).map_err(shape_err)?;
             let (r, _) = reward.reward_and_grad(ov, av)?;
             let r = r[0];
-            if !r.is_finite() {
-                return Err(Error::NonFinite {
-                    what: "imitation reward".into(),
-                    step: self.env_steps,
-                });
-            }
+            self.check_finite("imitation reward", r)?;
             self.push(&obs, &a, logp, r, &step.observation, step.terminated)?;
+            states.extend_from_slice(&obs);
+            actions.extend_from_slice(&a);
             self.env_steps += 1;
             true_ret += step.reward;
             im_ret += r;
@@ -731,22 +761,105 @@ impl Svg1 {
                 let adj = terminal(r);
                 self.adjust_last_reward(adj);
                 im_ret += adj;
-                on_episode(&EpisodeReport {
-                    env_steps: self.env_steps,
-                    true_return: true_ret,
-                    imitation_return: im_ret,
-                    length: len,
-                    info: step.info.clone(),
-                });
-                let s = seed(rng);
-                obs = env.reset(Some(s))?.0;
-                (true_ret, im_ret, len) = (0.0, 0.0, 0);
-            } else {
-                obs = step.observation;
+                finished = true;
+                info = step.info;
+                break;
+            }
+            obs = step.observation;
+        }
+        let shape = |w: usize, v: Vec<f64>| {
+            Array2::from_shape_vec((len, w), v).map_err(|e| Error::ShapeMismatch {
+                what: "episode pairs".into(),
+                expected: format!("{len} rows of {w}"),
+                got: e.to_string(),
+            })
+        };
+        Ok(EpisodeOutcome {
+            report: EpisodeReport {
+                env_steps: self.env_steps,
+                true_return: true_ret,
+                imitation_return: im_ret,
+                length: len,
+                info,
+            },
+            finished,
+            states: shape(o, states)?,
+            actions: shape(ad, actions)?,
+        })
+    }
+
+    fn check_observation(&self, obs: &[f64]) -> Result<()> {
+        if obs.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(Error::NonFinite {
+                what: "observation".into(),
+                step: self.env_steps,
+            })
+        }
+    }
+
+    fn check_spaces<E: Env + ?Sized>(&self, env: &E) -> Result<()> {
+        match (env.observation_space(), env.action_space()) {
+            (Space::Box(o), Space::Box(a))
+                if o.dim() == self.policy.obs_dim() && a.dim() == self.policy.act_dim() =>
+            {
+                Ok(())
+            }
+            _ => Err(Error::ShapeMismatch {
+                what: "SVG environment spaces".into(),
+                expected: format!(
+                    "boxes of {} and {}",
+                    self.policy.obs_dim(),
+                    self.policy.act_dim()
+                ),
+                got: "other spaces".into(),
+            }),
+        }
+    }
+
+    /// Runs `steps` environment steps as a sequence of
+    /// [`Svg1::run_episode`] calls; `on_episode` gets the report of every
+    /// episode that finished (the last one may be cut by the budget).
+    /// Episodes are reset with seeds drawn from `rng`, or every one with
+    /// `reset_seed` when given (one fixed track).
+    ///
+    /// # Errors
+    /// As [`Svg1::run_episode`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn train<E: Env + ?Sized, R: Rng + ?Sized>(
+        &mut self,
+        env: &mut E,
+        reward: &dyn DifferentiableReward,
+        steps: u64,
+        reset_seed: Option<u64>,
+        terminal: &dyn Fn(f64) -> f64,
+        rng: &mut R,
+        on_episode: &mut dyn FnMut(&EpisodeReport),
+    ) -> Result<()> {
+        let end = self.env_steps + steps;
+        while self.env_steps < end {
+            let left = end - self.env_steps;
+            let ep = self.run_episode(env, reward, reset_seed, terminal, left, rng)?;
+            if ep.finished {
+                on_episode(&ep.report);
             }
         }
         Ok(())
     }
+}
+
+/// One episode of [`Svg1::run_episode`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeOutcome {
+    /// Returns, length and the last step's info.
+    pub report: EpisodeReport,
+    /// False when the step budget cut the episode short.
+    pub finished: bool,
+    /// The states visited, `(length, obs_dim)`.
+    pub states: Array2<f64>,
+    /// The actions taken, `(length, act_dim)`.
+    pub actions: Array2<f64>,
 }
 
 fn shape_err(e: ndarray::ShapeError) -> Error {

@@ -285,3 +285,142 @@ fn config_validation_names_the_field() {
     assert_eq!(back, SvgConfig::default());
     assert!(serde_json::from_str::<SvgConfig>(r#"{"gama": 0.9}"#).is_err());
 }
+
+/// A reward that turns NaN after `after` calls on single pairs.
+struct BrokenReward {
+    after: std::cell::Cell<usize>,
+}
+
+impl DifferentiableReward for BrokenReward {
+    fn reward_and_grad(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> red_rl::Result<(Array1<f64>, Array2<f64>)> {
+        let (mut r, g) = ReachReward.reward_and_grad(states, actions)?;
+        if states.nrows() == 1 {
+            let left = self.after.get();
+            if left == 0 {
+                r[0] = f64::NAN;
+            } else {
+                self.after.set(left - 1);
+            }
+        }
+        Ok((r, g))
+    }
+}
+
+/// [`Reach`] whose observation turns NaN at step `at` of an episode.
+struct NanReach {
+    inner: Reach,
+    at: usize,
+}
+
+impl Env for NanReach {
+    fn observation_space(&self) -> &Space {
+        self.inner.observation_space()
+    }
+    fn action_space(&self) -> &Space {
+        self.inner.action_space()
+    }
+    fn reset(&mut self, seed: Option<u64>) -> red_core::Result<(Vec<f64>, Info)> {
+        self.inner.reset(seed)
+    }
+    fn step(&mut self, action: &[f64]) -> red_core::Result<Step> {
+        let mut st = self.inner.step(action)?;
+        if self.inner.t == self.at {
+            st.observation[1] = f64::NAN;
+        }
+        Ok(st)
+    }
+}
+
+#[test]
+fn non_finite_reward_or_observation_stops_with_what_and_step() {
+    let (mut svg, mut rng) = fresh(1, &SvgConfig::default());
+    let reward = BrokenReward {
+        after: std::cell::Cell::new(7),
+    };
+    let e = svg
+        .train(
+            &mut Reach::default(),
+            &reward,
+            100,
+            None,
+            &|_| 0.0,
+            &mut rng,
+            &mut |_| {},
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("imitation reward") && e.contains('7'), "{e}");
+
+    let (mut svg, mut rng) = fresh(1, &SvgConfig::default());
+    let mut env = NanReach {
+        inner: Reach::default(),
+        at: 5,
+    };
+    let e = svg
+        .train(
+            &mut env,
+            &ReachReward,
+            100,
+            None,
+            &|_| 0.0,
+            &mut rng,
+            &mut |_| {},
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("observation") && e.contains('4'), "{e}");
+}
+
+#[test]
+fn serialised_learner_continues_identically() {
+    let config = SvgConfig {
+        hidden: vec![16],
+        learning_starts: 50,
+        policy_delay: 50,
+        batch_size: 16,
+        ..SvgConfig::default()
+    };
+    let (mut a, mut rng_a) = fresh(2, &config);
+    let mut env = Reach::default();
+    a.train(
+        &mut env,
+        &ReachReward,
+        200,
+        None,
+        &|_| 0.0,
+        &mut rng_a,
+        &mut |_| {},
+    )
+    .unwrap();
+    let saved = serde_json::to_string(&(&a, &rng_a)).unwrap();
+    let (mut b, mut rng_b): (Svg1, ChaCha8Rng) = serde_json::from_str(&saved).unwrap();
+    let mut ra = Vec::new();
+    let mut rb = Vec::new();
+    a.train(
+        &mut env,
+        &ReachReward,
+        200,
+        None,
+        &|_| 0.0,
+        &mut rng_a,
+        &mut |e| ra.push(e.true_return),
+    )
+    .unwrap();
+    b.train(
+        &mut Reach::default(),
+        &ReachReward,
+        200,
+        None,
+        &|_| 0.0,
+        &mut rng_b,
+        &mut |e| rb.push(e.true_return),
+    )
+    .unwrap();
+    assert_eq!(ra, rb);
+    assert_eq!(a.policy(), b.policy());
+    assert_eq!(a.env_steps(), b.env_steps());
+}
