@@ -1209,3 +1209,76 @@ pub fn evaluate_file(
     let warnings = env.take_warnings().iter().sum();
     Ok((report, warnings))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mujoco_warnings_are_counted_and_named() {
+        let mut env = WatchedEnv::new(EnvId::Hopper).unwrap();
+        env.reset(Some(0)).unwrap();
+        env.step(&[0.0; 3]).unwrap();
+        assert_eq!(env.take_warnings(), [0; MJ_N_WARNING]);
+        // A velocity far beyond anything physical: MuJoCo warns and resets.
+        env.env
+            .inner_mut()
+            .set_state(&[0.0, 1.25, 0.0, 0.0, 0.0, 0.0], &[1e11; 6])
+            .unwrap();
+        env.step(&[0.0; 3]).unwrap();
+        let w = env.take_warnings();
+        assert!(w.iter().sum::<u64>() > 0, "{w:?}");
+        let text = describe_warnings(&w);
+        assert!(text.contains("mjWARN_BAD"), "{text}");
+        // Counted once: the next call starts from zero.
+        assert_eq!(env.take_warnings(), [0; MJ_N_WARNING]);
+    }
+
+    #[test]
+    fn non_finite_batches_are_refused_naming_what_and_when() {
+        let mut env = WatchedEnv::new(EnvId::Reacher).unwrap();
+        let cfg = RunConfig::for_task(EnvId::Reacher, Method::Expert);
+        let mut trainer = TrpoTrainer::new(cfg.trpo, 10, 2, None, 0).unwrap();
+        let mut batch = trainer.collect(&mut env).unwrap();
+        check_batch_finite(&batch, 1024).unwrap();
+        batch.observations[[5, 3]] = f64::NAN;
+        let e = check_batch_finite(&batch, 1024).unwrap_err().to_string();
+        assert!(e.contains("observation") && e.contains("1024"), "{e}");
+        batch.observations[[5, 3]] = 0.0;
+        batch.true_rewards[7] = f64::INFINITY;
+        let e = check_batch_finite(&batch, 2048).unwrap_err().to_string();
+        assert!(e.contains("reward") && e.contains("2048"), "{e}");
+    }
+
+    #[test]
+    fn config_validation_names_the_field() {
+        let mut c = RunConfig::for_task(EnvId::Ant, Method::Red);
+        assert!(c.validate().unwrap_err().to_string().contains("demo"));
+        c.demo = Some("x.json".into());
+        c.validate().unwrap();
+        c.sigma1 = -1.0;
+        assert!(c.validate().unwrap_err().to_string().contains("sigma1"));
+        c.sigma1 = 1.0;
+        c.trpo.max_kl = 0.0;
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("trpo") && e.contains("max_kl"), "{e}");
+        let json = r#"{"env": "Ant-v5", "method": "red", "sigmaa1": 3}"#;
+        let e = serde_json::from_str::<RunConfig>(json)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sigmaa1"), "{e}");
+        // The release's per-task settings.
+        let h = RunConfig::for_task(EnvId::HalfCheetah, Method::Red);
+        assert_eq!(
+            (h.sigma1, h.rnd.output, h.bc_warm_start_epochs),
+            (25_000.0, 20, 20)
+        );
+        let r = RunConfig::for_task(EnvId::Reacher, Method::Ae);
+        assert_eq!(
+            (r.sigma1, r.autoencoder.hidden, r.trpo.gae.gamma),
+            (1000.0, 100, 0.99)
+        );
+        let g = RunConfig::for_task(EnvId::Ant, Method::Gail);
+        assert!(!g.freeze_obs_norm_from_demo && g.bc_warm_start_epochs == 0);
+    }
+}
