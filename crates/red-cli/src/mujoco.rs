@@ -74,6 +74,13 @@ pub(crate) struct CommonRunArgs {
     /// Evaluation episodes of the final policy and of the best checkpoint.
     #[arg(long)]
     pub eval_episodes: Option<usize>,
+    /// A fixed sigma1 for `red` and `ae` (default: calibrated so that 90%
+    /// of the expert pairs get a reward of at least 0.9).
+    #[arg(long, conflicts_with = "release_sigma1")]
+    pub sigma1: Option<f64>,
+    /// Use the RED release's hand-set sigma1 of the task and method.
+    #[arg(long)]
+    pub release_sigma1: bool,
     /// Stop as Ctrl-C does once this many iterations are done (for tests).
     #[arg(long, hide = true)]
     pub stop_after_iterations: Option<u64>,
@@ -205,6 +212,12 @@ pub(crate) fn build_config(
     }
     if let Some(e) = common.eval_episodes {
         cfg.eval_episodes = e;
+    }
+    if let Some(s) = common.sigma1 {
+        cfg.sigma1 = red_support::Sigma1::Fixed(s);
+    }
+    if common.release_sigma1 {
+        cfg.sigma1 = red_support::Sigma1::Fixed(RunConfig::release_sigma1(env, method));
     }
     if method.needs_demo() {
         cfg.demo = Some(demo.unwrap_or_else(|| default_demo(&common.out_dir, env)));
