@@ -61,7 +61,8 @@ pub(crate) struct CommonRunArgs {
     #[arg(long, default_value = "runs")]
     pub out_dir: PathBuf,
     /// Continue the run in this folder from its last checkpoint (its
-    /// `config.json` holds the settings; `--steps` may raise the budget).
+    /// `config.json` holds the settings; `--steps` changes the budget: at or
+    /// below the steps done, the run ends there and is evaluated).
     #[arg(long, value_name = "RUN_DIR")]
     pub resume: Option<PathBuf>,
     /// A JSON file of settings (the fields of `config.json`; missing fields
@@ -88,9 +89,9 @@ pub(crate) struct CommonRunArgs {
 
 #[derive(Debug, Args)]
 struct ExpertArgs {
-    /// The task, e.g. `hopper` or `Hopper-v5`.
-    #[arg(long)]
-    env: String,
+    /// The task, e.g. `hopper` or `Hopper-v5` (not needed with `--resume`).
+    #[arg(long, required_unless_present = "resume")]
+    env: Option<String>,
     #[command(flatten)]
     common: CommonRunArgs,
 }
@@ -150,7 +151,10 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
     match args.command {
         MujocoCommand::Check(a) => check(a),
         MujocoCommand::Expert(a) => {
-            let env: EnvId = a.env.parse()?;
+            let env: EnvId = match &a.env {
+                Some(e) => e.parse()?,
+                None => EnvId::Hopper, // unused: the run's config.json decides
+            };
             start_run(env, Method::Expert, None, a.common)
         }
         MujocoCommand::Train(a) => {

@@ -791,7 +791,8 @@ fn check_batch_finite(batch: &red_rl::rollout::RolloutBatch, step: u64) -> anyho
 
 /// Starts a new run in `dir` (which must not hold one) with `cfg`, or
 /// continues the one there when `resume` (its `config.json` is used; `cfg`
-/// only supplies a larger step budget).
+/// only supplies the step budget: a larger one trains on, one at or below
+/// the steps done ends the run there, with its evaluation).
 ///
 /// # Errors
 /// Bad settings or files, a failed fit, a non-finite quantity during
@@ -806,7 +807,7 @@ pub fn run(
     let (cfg, state) = if resume {
         let mut saved = read_config(dir)?;
         if let Some(c) = &cfg
-            && c.steps > saved.steps
+            && c.steps != saved.steps
         {
             saved.steps = c.steps;
             write_atomic(
