@@ -31,6 +31,7 @@ pub fn requested() -> bool {
 
 /// Asks the run to stop, as Ctrl-C does (tests use it to interrupt a run at
 /// a known point).
+#[allow(dead_code)] // only tests call it
 pub fn request() {
     REQUESTED.store(true, Ordering::SeqCst);
 }

@@ -29,7 +29,8 @@ enum Command {
     /// Check the whole install: MuJoCo library version, model files,
     /// threads, and a tiny run of every environment.
     Doctor(doctor::DoctorArgs),
-    /// The MuJoCo environments (Gymnasium -v5): check the set-up.
+    /// The MuJoCo tasks (Gymnasium -v5, paper Sec. 5.2): check the set-up,
+    /// train experts, imitate, evaluate, run Table 1.
     Mujoco(mujoco::MujocoArgs),
 }
 
@@ -39,6 +40,8 @@ mod drive;
 mod drive_train;
 mod interrupt;
 mod mujoco;
+mod mujoco_run;
+mod mujoco_table;
 mod plot;
 mod support;
 mod toy;

@@ -1,6 +1,9 @@
 //! `red-cli mujoco`: the MuJoCo environments (Gymnasium's `-v5` Hopper,
-//! HalfCheetah, Walker2d, Ant, Reacher).
+//! HalfCheetah, Walker2d, Ant, Reacher): set-up check, experts and their
+//! demonstrations, imitation runs (paper Sec. 5.2), evaluation, and the
+//! grid of Table 1.
 
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
@@ -8,6 +11,9 @@ use clap::{Args, Subcommand};
 use red_core::Env;
 use red_core::check::{CheckConfig, check_env_with};
 use red_mujoco::{EnvId, MujocoEnv};
+
+use crate::mujoco_run::{self, Method, Outcome, RunConfig, RunOptions};
+use crate::{interrupt, mujoco_table};
 
 /// Arguments of `red-cli mujoco`.
 #[derive(Debug, Args)]
@@ -22,6 +28,108 @@ enum MujocoCommand {
     /// env checker (seeded random actions, twice, compared bit for bit) and
     /// print its dimensions and speed.
     Check(CheckArgs),
+    /// Train an expert with TRPO on the true reward, then write its policy
+    /// and a demonstration file of 4 deterministic episodes (the paper's
+    /// protocol) into `runs/expert-<env>/`.
+    Expert(ExpertArgs),
+    /// Imitation with TRPO (RED, AE, GAIL, GMMIL) or behaviour cloning
+    /// alone, from a demonstration file; checkpoints, `--resume`, metrics,
+    /// best checkpoint by true return, final evaluation.
+    Train(TrainArgs),
+    /// Evaluate a saved policy: deterministic actions, true reward, mean
+    /// and standard deviation of the return.
+    Eval(EvalArgs),
+    /// Run a grid of tasks x methods x seeds in parallel and write the
+    /// paper's Table 1 (markdown and CSV) and a learning-curve PNG per task.
+    Table(mujoco_table::TableArgs),
+}
+
+/// Options shared by `expert` and `train`.
+#[derive(Debug, Args)]
+pub(crate) struct CommonRunArgs {
+    /// Environment steps of TRPO (default: 5,000,000 for `expert`,
+    /// 2,000,000 for `train`).
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Seed of every random stream of the run.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Run name: outputs go to `<out-dir>/<name>/`.
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Folder of the runs.
+    #[arg(long, default_value = "runs")]
+    pub out_dir: PathBuf,
+    /// Continue the run in this folder from its last checkpoint (its
+    /// `config.json` holds the settings; `--steps` changes the budget: at or
+    /// below the steps done, the run ends there and is evaluated).
+    #[arg(long, value_name = "RUN_DIR")]
+    pub resume: Option<PathBuf>,
+    /// A JSON file of settings (the fields of `config.json`; missing fields
+    /// take the task's defaults, unknown fields are refused).
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// TRPO iterations between checkpoints.
+    #[arg(long)]
+    pub checkpoint_every: Option<u64>,
+    /// Evaluation episodes of the final policy and of the best checkpoint.
+    #[arg(long)]
+    pub eval_episodes: Option<usize>,
+    /// A fixed sigma1 for `red` and `ae` (default: calibrated so that 90%
+    /// of the expert pairs get a reward of at least 0.9).
+    #[arg(long, conflicts_with = "release_sigma1")]
+    pub sigma1: Option<f64>,
+    /// Use the RED release's hand-set sigma1 of the task and method.
+    #[arg(long)]
+    pub release_sigma1: bool,
+    /// Stop as Ctrl-C does once this many iterations are done (for tests).
+    #[arg(long, hide = true)]
+    pub stop_after_iterations: Option<u64>,
+}
+
+#[derive(Debug, Args)]
+struct ExpertArgs {
+    /// The task, e.g. `hopper` or `Hopper-v5` (not needed with `--resume`).
+    #[arg(long, required_unless_present = "resume")]
+    env: Option<String>,
+    #[command(flatten)]
+    common: CommonRunArgs,
+}
+
+#[derive(Debug, Args)]
+struct TrainArgs {
+    /// The task, e.g. `hopper` or `Hopper-v5`.
+    #[arg(long)]
+    env: Option<String>,
+    /// The method.
+    #[arg(long, value_enum)]
+    method: Option<Method>,
+    /// Demonstration file (default: `<out-dir>/expert-<env>/demos.json`,
+    /// written by `red-cli mujoco expert`).
+    #[arg(long)]
+    demo: Option<PathBuf>,
+    #[command(flatten)]
+    common: CommonRunArgs,
+}
+
+#[derive(Debug, Args)]
+struct EvalArgs {
+    /// A policy file (`policy.json`, `best_policy.json`,
+    /// `expert_policy.json` of a run).
+    #[arg(long)]
+    policy: PathBuf,
+    /// The task the policy was trained on.
+    #[arg(long)]
+    env: String,
+    /// Episodes (the paper: 50).
+    #[arg(long, default_value_t = 50)]
+    episodes: usize,
+    /// Seed of the episodes' resets.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Also write the returns to this JSON file.
+    #[arg(long)]
+    out: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -42,7 +150,245 @@ struct CheckArgs {
 pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
     match args.command {
         MujocoCommand::Check(a) => check(a),
+        MujocoCommand::Expert(a) => {
+            let env: EnvId = match &a.env {
+                Some(e) => e.parse()?,
+                None => EnvId::Hopper, // unused: the run's config.json decides
+            };
+            start_run(env, Method::Expert, None, a.common)
+        }
+        MujocoCommand::Train(a) => {
+            if a.common.resume.is_some() {
+                return start_run(EnvId::Hopper, Method::Red, None, a.common);
+            }
+            let env: EnvId = a
+                .env
+                .context("--env is required (or --resume RUN_DIR)")?
+                .parse()?;
+            let method = a
+                .method
+                .context("--method is required (red, ae, gail, gmmil or bc)")?;
+            anyhow::ensure!(
+                method != Method::Expert,
+                "use `red-cli mujoco expert` to train an expert"
+            );
+            start_run(env, method, a.demo, a.common)
+        }
+        MujocoCommand::Eval(a) => eval(a),
+        MujocoCommand::Table(a) => mujoco_table::run(a),
     }
+}
+
+/// The settings of a new run from the task's defaults, a `--config` file
+/// and the command line.
+pub(crate) fn build_config(
+    env: EnvId,
+    method: Method,
+    demo: Option<PathBuf>,
+    common: &CommonRunArgs,
+) -> anyhow::Result<RunConfig> {
+    let mut cfg = RunConfig::for_task(env, method);
+    if method == Method::Expert {
+        cfg.steps = 5_000_000;
+    }
+    if let Some(path) = &common.config {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        // Fields missing from the file keep the task's defaults.
+        let mut base = serde_json::to_value(&cfg)?;
+        let over: serde_json::Value =
+            serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+        merge(&mut base, over);
+        cfg =
+            serde_json::from_value(base).with_context(|| format!("reading {}", path.display()))?;
+        anyhow::ensure!(
+            cfg.env == env && cfg.method == method,
+            "{} sets another task or method than the command line",
+            path.display()
+        );
+    }
+    cfg.seed = common.seed;
+    if let Some(s) = common.steps {
+        cfg.steps = s;
+    }
+    if let Some(c) = common.checkpoint_every {
+        cfg.checkpoint_every = c;
+    }
+    if let Some(e) = common.eval_episodes {
+        cfg.eval_episodes = e;
+    }
+    if let Some(s) = common.sigma1 {
+        cfg.sigma1 = red_support::Sigma1::Fixed(s);
+    }
+    if common.release_sigma1 {
+        cfg.sigma1 = red_support::Sigma1::Fixed(RunConfig::release_sigma1(env, method));
+    }
+    if method.needs_demo() {
+        cfg.demo = Some(demo.unwrap_or_else(|| default_demo(&common.out_dir, env)));
+    }
+    cfg.validate()?;
+    Ok(cfg)
+}
+
+/// Overwrites `base` with the fields of `over`, recursively for objects.
+fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
+    match (base, over) {
+        (serde_json::Value::Object(b), serde_json::Value::Object(o)) => {
+            for (k, v) in o {
+                match b.get_mut(&k) {
+                    Some(slot) => merge(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (b, o) => *b = o,
+    }
+}
+
+/// Where `red-cli mujoco expert` puts the demonstrations of `env`.
+pub(crate) fn default_demo(out_dir: &Path, env: EnvId) -> PathBuf {
+    expert_dir(out_dir, env).join("demos.json")
+}
+
+/// The run folder of `red-cli mujoco expert --env <env>`.
+pub(crate) fn expert_dir(out_dir: &Path, env: EnvId) -> PathBuf {
+    out_dir.join(format!("expert-{}", short_name(env)))
+}
+
+/// `hopper`, `halfcheetah`, ...
+pub(crate) fn short_name(env: EnvId) -> String {
+    env.name().trim_end_matches("-v5").to_ascii_lowercase()
+}
+
+fn start_run(
+    env: EnvId,
+    method: Method,
+    demo: Option<PathBuf>,
+    common: CommonRunArgs,
+) -> anyhow::Result<()> {
+    interrupt::install();
+    let (dir, cfg, resume) = match &common.resume {
+        Some(dir) => {
+            let mut cfg = mujoco_run::read_config(dir)?;
+            if let Some(s) = common.steps {
+                cfg.steps = s;
+            }
+            (dir.clone(), Some(cfg), true)
+        }
+        None => {
+            let cfg = build_config(env, method, demo, &common)?;
+            let name = common.name.clone().unwrap_or_else(|| match method {
+                Method::Expert => format!("expert-{}", short_name(env)),
+                m => format!("{}-{}-s{}", short_name(env), m.name(), cfg.seed),
+            });
+            (common.out_dir.join(name), Some(cfg), false)
+        }
+    };
+    let label = cfg
+        .as_ref()
+        .map(|c| format!("{} {}", short_name(c.env), c.method.name()))
+        .unwrap_or_default();
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(mujoco_run::bar_style());
+    bar.set_prefix(label.clone());
+    let opts = RunOptions {
+        bar: bar.clone(),
+        log_prefix: Some(label),
+        stop_after_iterations: common.stop_after_iterations,
+    };
+    let outcome = mujoco_run::run(&dir, cfg, resume, &opts)?;
+    bar.finish_and_clear();
+    if outcome == Outcome::Interrupted {
+        println!("interrupted; continue with --resume {}", dir.display());
+        return Ok(());
+    }
+    print_eval(&dir)
+}
+
+fn print_eval(dir: &Path) -> anyhow::Result<()> {
+    let e = mujoco_run::read_eval(dir)
+        .with_context(|| format!("reading {}", dir.join("eval.json").display()))?;
+    println!(
+        "{} {} seed {} ({} episodes, deterministic actions, true reward):",
+        e.env, e.method, e.seed, e.episodes
+    );
+    println!(
+        "  final policy ({} env steps): {:.2} +- {:.2} (mean length {:.0})",
+        e.final_policy.env_steps,
+        e.final_policy.mean,
+        e.final_policy.std,
+        e.final_policy.mean_length
+    );
+    if let Some(b) = &e.best_checkpoint {
+        println!(
+            "  best checkpoint by training true return ({} env steps): {:.2} +- {:.2}",
+            b.env_steps, b.mean, b.std
+        );
+    }
+    if let Some(r) = &e.demo_returns {
+        println!(
+            "  expert: {}; demonstrations written ({} trajectories, returns {})",
+            e.expert_choice.as_deref().unwrap_or("-"),
+            r.len(),
+            r.iter()
+                .map(|x| format!("{x:.1}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    if e.mujoco_warnings > 0 {
+        println!("  MuJoCo warnings during training: {}", e.mujoco_warnings);
+    }
+    println!(
+        "  wall time {:.0} s; outputs in {}",
+        e.wall_s,
+        dir.display()
+    );
+    Ok(())
+}
+
+fn eval(args: EvalArgs) -> anyhow::Result<()> {
+    let env: EnvId = args.env.parse()?;
+    let (report, warnings) =
+        mujoco_run::evaluate_file(&args.policy, env, args.episodes, args.seed)?;
+    println!(
+        "{} on {env}: {:.2} +- {:.2} over {} episodes (deterministic actions, true reward; mean length {:.0})",
+        args.policy.display(),
+        report.mean_return(),
+        report.std_return(),
+        report.returns.len(),
+        report.mean_length()
+    );
+    if warnings > 0 {
+        println!("MuJoCo warnings during the evaluation: {warnings}");
+    }
+    if let Some(out) = &args.out {
+        #[derive(serde::Serialize)]
+        struct Out<'a> {
+            policy: String,
+            env: &'a str,
+            episodes: usize,
+            seed: u64,
+            mean: f64,
+            std: f64,
+            returns: &'a [f64],
+            lengths: &'a [usize],
+        }
+        let o = Out {
+            policy: args.policy.display().to_string(),
+            env: env.name(),
+            episodes: args.episodes,
+            seed: args.seed,
+            mean: report.mean_return(),
+            std: report.std_return(),
+            returns: &report.returns,
+            lengths: &report.lengths,
+        };
+        red_core::checkpoint::write_atomic(out, serde_json::to_string_pretty(&o)?.as_bytes())?;
+    }
+    Ok(())
 }
 
 /// One line of the check's table.
