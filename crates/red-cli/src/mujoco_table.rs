@@ -371,15 +371,15 @@ fn report(
             }
         }
     }
-    let experts: Vec<Option<(EvalFile, f64)>> = envs
+    let experts: Vec<Option<(EvalFile, f64, f64)>> = envs
         .iter()
         .map(|&env| {
             let e = mujoco_run::read_eval(&expert_dir(experts_dir, env))?;
-            let expert_eval = match e.expert_choice.as_deref() {
-                Some("best checkpoint") => e.best_checkpoint.clone()?.mean,
-                _ => e.final_policy.mean,
+            let chosen = match e.expert_choice.as_deref() {
+                Some("best checkpoint") => e.best_checkpoint.clone()?,
+                _ => e.final_policy.clone(),
             };
-            Some((e, expert_eval))
+            Some((e, chosen.mean, chosen.std))
         })
         .collect();
 
@@ -410,11 +410,11 @@ fn report(
     ] {
         md.push_str(&format!("### {title}\n\n"));
         header(&mut md);
-        md.push_str("| Expert (policy, 50 episodes) |");
+        md.push_str("| Expert (its policy; mean of its 4 demos) |");
         for ex in &experts {
             match ex {
-                Some((e, m)) => md.push_str(&format!(
-                    " {m:.2} (demos {:.2}) |",
+                Some((e, m, sd)) => md.push_str(&format!(
+                    " {m:.2} ± {sd:.2} ({:.2}) |",
                     e.demo_returns.as_ref().map_or(f64::NAN, |r| mean_std(r).0)
                 )),
                 None => md.push_str(" no expert run |"),
@@ -433,10 +433,17 @@ fn report(
                     .unwrap_or_default();
                 let c = cell(&list, best);
                 let missing = seeds.len() - list.len();
-                md.push_str(&format!(
-                    " {} |",
-                    fmt_cell(&c, if c.is_some() { missing } else { 0 })
-                ));
+                let started = seeds.iter().any(|s| {
+                    root.join("runs")
+                        .join(format!("{}-{}-s{s}", short_name(env), m.name()))
+                        .join("config.json")
+                        .is_file()
+                });
+                let text = match (&c, started) {
+                    (None, true) => "unfinished".to_string(),
+                    _ => fmt_cell(&c, if c.is_some() { missing } else { 0 }),
+                };
+                md.push_str(&format!(" {text} |"));
                 if let Some(c) = &c {
                     csv.push_str(&format!(
                         "{},{},{},{},{},{},{},{},{}\n",
@@ -518,7 +525,7 @@ fn report(
                 });
             }
         }
-        if let Some((_, m)) = &experts[ei] {
+        if let Some((_, m, _)) = &experts[ei] {
             series.push(Series {
                 label: "expert (evaluation)".into(),
                 points: vec![(0.0, *m), (x_end, *m)],
