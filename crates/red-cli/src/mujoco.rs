@@ -36,8 +36,8 @@ enum MujocoCommand {
     /// alone, from a demonstration file; checkpoints, `--resume`, metrics,
     /// best checkpoint by true return, final evaluation.
     Train(TrainArgs),
-    /// Evaluate a saved policy: deterministic actions, true reward, mean
-    /// and standard deviation of the return.
+    /// Evaluate a saved policy: deterministic actions (or sampled with
+    /// `--stochastic`), true reward, mean and standard deviation of the return.
     Eval(EvalArgs),
     /// Run a grid of tasks x methods x seeds in parallel and write the
     /// paper's Table 1 (markdown and CSV) and a learning-curve PNG per task.
@@ -130,6 +130,10 @@ struct EvalArgs {
     /// Also write the returns to this JSON file.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Sample the actions from the policy's Gaussian, as in training,
+    /// instead of taking its mean (the default).
+    #[arg(long)]
+    stochastic: bool,
 }
 
 #[derive(Debug, Args)]
@@ -352,9 +356,14 @@ fn print_eval(dir: &Path) -> anyhow::Result<()> {
 fn eval(args: EvalArgs) -> anyhow::Result<()> {
     let env: EnvId = args.env.parse()?;
     let (report, warnings) =
-        mujoco_run::evaluate_file(&args.policy, env, args.episodes, args.seed)?;
+        mujoco_run::evaluate_file(&args.policy, env, args.episodes, args.seed, args.stochastic)?;
+    let actions = if args.stochastic {
+        "sampled"
+    } else {
+        "deterministic"
+    };
     println!(
-        "{} on {env}: {:.2} +- {:.2} over {} episodes (deterministic actions, true reward; mean length {:.0})",
+        "{} on {env}: {:.2} +- {:.2} over {} episodes ({actions} actions, true reward; mean length {:.0})",
         args.policy.display(),
         report.mean_return(),
         report.std_return(),
@@ -371,6 +380,7 @@ fn eval(args: EvalArgs) -> anyhow::Result<()> {
             env: &'a str,
             episodes: usize,
             seed: u64,
+            actions: &'a str,
             mean: f64,
             std: f64,
             returns: &'a [f64],
@@ -381,6 +391,7 @@ fn eval(args: EvalArgs) -> anyhow::Result<()> {
             env: env.name(),
             episodes: args.episodes,
             seed: args.seed,
+            actions,
             mean: report.mean_return(),
             std: report.std_return(),
             returns: &report.returns,

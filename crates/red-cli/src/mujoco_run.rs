@@ -39,7 +39,7 @@ use red_rl::gail::{Gail, GailConfig};
 use red_rl::gmmil::{Gmmil, GmmilConfig};
 use red_rl::normalize::{DEFAULT_CLIP, DEFAULT_MIN_STD, ObsNormalizer};
 use red_rl::policy::GaussianPolicy;
-use red_rl::rollout::{EvalReport, evaluate, true_reward};
+use red_rl::rollout::{EvalReport, evaluate, evaluate_sampled, true_reward};
 use red_rl::trpo::{IterationMetrics, TrpoConfig, TrpoTrainer};
 use red_support::{
     AutoencoderConfig, FittedEstimator, RedReward, RedRewardConfig, RndConfig, Sigma1,
@@ -1221,8 +1221,9 @@ pub fn record_demos(
     Ok(demos)
 }
 
-/// Runs the policy file `path` on `id` for `episodes` episodes with
-/// deterministic actions and the true reward.
+/// Runs the policy file `path` on `id` for `episodes` episodes with the
+/// true reward: deterministic (mean) actions, or actions sampled from the
+/// policy's Gaussian when `sampled`.
 ///
 /// # Errors
 /// An unreadable policy, or one whose dimensions do not fit the task.
@@ -1231,12 +1232,14 @@ pub fn evaluate_file(
     id: EnvId,
     episodes: usize,
     seed: u64,
+    sampled: bool,
 ) -> anyhow::Result<(EvalReport, u64)> {
     ensure!(episodes > 0, "--episodes must be at least 1");
     let policy =
         GaussianPolicy::load(path).with_context(|| format!("loading {}", path.display()))?;
     let mut env = WatchedEnv::new(id)?;
-    let report = evaluate(
+    let run = if sampled { evaluate_sampled } else { evaluate };
+    let report = run(
         &mut env,
         &policy,
         episodes,

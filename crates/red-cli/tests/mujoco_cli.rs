@@ -165,6 +165,34 @@ fn expert_train_interrupt_resume_eval_and_table() {
         out,
     ));
     assert!(s.contains(&format!("{mean:.2} +-")), "{s} vs {mean}");
+    // Sampled actions: reproducible, labelled, and not the mean's return.
+    let sampled = |name: &str| {
+        let json = out.join(name);
+        let s = ok(&cli(
+            &[
+                "eval",
+                "--policy",
+                &policy,
+                "--env",
+                "reacher",
+                "--episodes",
+                "3",
+                "--seed",
+                "3",
+                "--stochastic",
+                "--out",
+                json.to_str().unwrap(),
+            ],
+            out,
+        ));
+        assert!(s.contains("sampled actions"), "{s}");
+        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        assert_eq!(v["actions"], "sampled");
+        v["mean"].as_f64().unwrap()
+    };
+    let m1 = sampled("s1.json");
+    assert_eq!(m1, sampled("s2.json"));
+    assert_ne!(format!("{m1:.2}"), format!("{mean:.2}"));
 
     // A table over the finished grid: BC runs, the expert row, the curve.
     let s = ok(&cli(

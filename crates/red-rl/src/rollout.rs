@@ -105,8 +105,41 @@ pub fn evaluate<E: Env + ?Sized, R: Rng + ?Sized>(
     max_steps: Option<usize>,
     rng: &mut R,
 ) -> Result<EvalReport> {
+    run_episodes(env, policy, episodes, max_steps, rng, false)
+}
+
+/// As [`evaluate`], but with actions sampled from the policy's Gaussian (as
+/// in training) instead of its mean. The resets use the same seeds as
+/// [`evaluate`] with the same `rng`; the action noise comes from a stream
+/// seeded by one more draw from `rng` after them.
+///
+/// # Errors
+/// As [`evaluate`].
+pub fn evaluate_sampled<E: Env + ?Sized, R: Rng + ?Sized>(
+    env: &mut E,
+    policy: &GaussianPolicy,
+    episodes: usize,
+    max_steps: Option<usize>,
+    rng: &mut R,
+) -> Result<EvalReport> {
+    run_episodes(env, policy, episodes, max_steps, rng, true)
+}
+
+fn run_episodes<E: Env + ?Sized, R: Rng + ?Sized>(
+    env: &mut E,
+    policy: &GaussianPolicy,
+    episodes: usize,
+    max_steps: Option<usize>,
+    rng: &mut R,
+    sampled: bool,
+) -> Result<EvalReport> {
     check_obs_space(env, policy.obs_dim())?;
     let (low, high) = action_bounds(env, policy.act_dim())?;
+    let seeds: Vec<u64> = (0..episodes).map(|_| rng.random()).collect();
+    let mut noise = sampled.then(|| {
+        use rand::SeedableRng;
+        rand_chacha::ChaCha8Rng::seed_from_u64(rng.random())
+    });
     let mut ws = PolicyWorkspace::default();
     let mut a = vec![0.0; policy.act_dim()];
     let mut clipped = a.clone();
@@ -114,12 +147,11 @@ pub fn evaluate<E: Env + ?Sized, R: Rng + ?Sized>(
         returns: Vec::with_capacity(episodes),
         lengths: Vec::with_capacity(episodes),
     };
-    for _ in 0..episodes {
-        let seed: u64 = rng.random();
+    for seed in seeds {
         let (mut obs, _) = env.reset(Some(seed))?;
         let (mut ret, mut len) = (0.0, 0);
         loop {
-            policy.act_into(&obs, None::<&mut rand_chacha::ChaCha8Rng>, &mut ws, &mut a)?;
+            policy.act_into(&obs, noise.as_mut(), &mut ws, &mut a)?;
             clip_into(&a, &low, &high, &mut clipped);
             let step = env.step(&clipped)?;
             ret += true_reward(&step);

@@ -9,7 +9,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use red_core::{BoxSpace, Env, Info, RewardModel, Space, Step, TimeLimit};
 use red_nets::Workspace;
-use red_rl::rollout::evaluate;
+use red_rl::rollout::{evaluate, evaluate_sampled};
 use red_rl::trpo::{IterationMetrics, TrpoConfig, TrpoTrainer};
 
 /// A point on a line that must reach a target: observation `[x, target]`,
@@ -291,4 +291,55 @@ fn config_validation_names_the_field() {
     assert!(serde_json::from_str::<TrpoConfig>(json).is_err());
     let cfg: TrpoConfig = serde_json::from_str(r#"{"max_kl": 0.02}"#).unwrap();
     assert_eq!(cfg.steps_per_batch, 1024);
+}
+
+#[test]
+fn sampled_evaluation_adds_only_action_noise() {
+    // An untrained policy with a wide Gaussian (log-std 0): its sampled
+    // actions differ from the mean, its resets do not.
+    let t = TrpoTrainer::new(small_config(), 2, 1, None, 3).unwrap();
+    let mut env = Reach::new();
+    let det = evaluate(
+        &mut env,
+        t.policy(),
+        5,
+        Some(1),
+        &mut ChaCha8Rng::seed_from_u64(7),
+    )
+    .unwrap();
+    let det2 = evaluate(
+        &mut env,
+        t.policy(),
+        5,
+        Some(1),
+        &mut ChaCha8Rng::seed_from_u64(7),
+    )
+    .unwrap();
+    assert_eq!(det, det2);
+    let s1 = evaluate_sampled(
+        &mut env,
+        t.policy(),
+        5,
+        Some(1),
+        &mut ChaCha8Rng::seed_from_u64(7),
+    )
+    .unwrap();
+    let s2 = evaluate_sampled(
+        &mut env,
+        t.policy(),
+        5,
+        Some(1),
+        &mut ChaCha8Rng::seed_from_u64(7),
+    )
+    .unwrap();
+    assert_eq!(s1, s2, "same seed, same sampled evaluation");
+    assert_ne!(
+        s1.returns, det.returns,
+        "sampled actions must differ from the mean"
+    );
+    // One step from the same reset: |x' - target| differs from the
+    // deterministic one by at most 0.2 * |a - a_mean| <= 0.4.
+    for (a, b) in s1.returns.iter().zip(&det.returns) {
+        assert!((a - b).abs() <= 0.4 + 1e-12, "{a} vs {b}");
+    }
 }
