@@ -150,8 +150,8 @@ fn expert_train_interrupt_resume_eval_and_table() {
     let (final_returns, _) = eval_returns(&out.join("red-split"));
     let mean = final_returns.iter().sum::<f64>() / final_returns.len() as f64;
     let policy = out.join("red-split/policy.json").display().to_string();
-    let s = ok(&cli(
-        &[
+    let eval = |extra: &[&str]| {
+        let mut args = vec![
             "eval",
             "--policy",
             &policy,
@@ -161,30 +161,16 @@ fn expert_train_interrupt_resume_eval_and_table() {
             "3",
             "--seed",
             "3",
-        ],
-        out,
-    ));
+        ];
+        args.extend_from_slice(extra);
+        ok(&cli(&args, out))
+    };
+    let s = eval(&[]);
     assert!(s.contains(&format!("{mean:.2} +-")), "{s} vs {mean}");
     // Sampled actions: reproducible, labelled, and not the mean's return.
     let sampled = |name: &str| {
         let json = out.join(name);
-        let s = ok(&cli(
-            &[
-                "eval",
-                "--policy",
-                &policy,
-                "--env",
-                "reacher",
-                "--episodes",
-                "3",
-                "--seed",
-                "3",
-                "--stochastic",
-                "--out",
-                json.to_str().unwrap(),
-            ],
-            out,
-        ));
+        let s = eval(&["--stochastic", "--out", json.to_str().unwrap()]);
         assert!(s.contains("sampled actions"), "{s}");
         let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
         assert_eq!(v["actions"], "sampled");
