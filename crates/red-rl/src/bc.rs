@@ -8,7 +8,9 @@
 //! epochs. (OpenAI baselines' behaviour cloning calls a single minibatch
 //! step an iteration; 20 minibatch steps would barely move a fresh network,
 //! so the epoch reading is the one a warm start can mean. This is a
-//! judgement, not a fact read from the release.)
+//! judgement, not a fact read from the release.) `red-cli mujoco train`
+//! keeps these for `ae` but clones for 100 epochs before a `red` run, a
+//! measured change documented on its `RunConfig`.
 //!
 //! Only the mean head is trained; the log-std outputs get no gradient.
 //! Observations go through the policy's own normaliser, so set it (for
