@@ -122,9 +122,10 @@ pub struct RunConfig {
     /// except that a `red` run with a BC warm start (HalfCheetah, Walker2d,
     /// Ant) starts its policy's log-std at -1 (sigma ~0.37) instead of 0. Measured
     /// reason: with sigma 1 on actions in [-1, 1] the sampled actions of the
-    /// warm-started policy are mostly noise (HalfCheetah: -230 in the first
-    /// batch against ~1700 for its mean action), and TRPO drifts away from
-    /// the cloned gait before it has seen it (see `rnd`).
+    /// warm-started policy are mostly noise (HalfCheetah: the first batch
+    /// of the 20-epoch warm start returned -230, BC's mean actions 1718),
+    /// and TRPO drifts away from the cloned gait before it has seen it (see
+    /// `rnd`).
     pub trpo: TrpoConfig,
     /// RED's support estimator. Default: the release's RND (4 x 128 target,
     /// 1 x 128 predictor, outputs 128, 200 epochs; all widths 20 and 300
@@ -133,7 +134,7 @@ pub struct RunConfig {
     ///   standard deviation (the release feeds raw values). The release's
     ///   networks have zero biases and leaky ReLUs, so on raw input the
     ///   target and a trained predictor both stay near 0 around the origin:
-    ///   a still HalfCheetah (all zeros) scored reward 0.78 with sigma1
+    ///   a still HalfCheetah (all zeros) scored reward 0.78 (width 20) with sigma1
     ///   calibrated on the expert, 0.20 with standardised input. RED on
     ///   Walker2d at 5M: 1156 (22.9% of the expert) raw, 3881 (76.8%)
     ///   standardised;
