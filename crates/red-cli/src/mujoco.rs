@@ -353,6 +353,29 @@ fn print_eval(dir: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Prints where the return comes from: each reward term of the task summed
+/// over an episode, and the other info entries (velocities, positions) as
+/// means per step, all averaged over the episodes.
+fn print_breakdown(report: &red_rl::rollout::EvalReport) {
+    let steps = report.mean_length().max(1.0);
+    let (terms, other): (Vec<_>, Vec<_>) = report
+        .info_totals
+        .iter()
+        .partition(|(k, _)| k.starts_with("reward_"));
+    let show = |v: &[&(String, f64)], scale: f64| {
+        v.iter()
+            .map(|(k, x)| format!("{k} {:.2}", x / scale))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if !terms.is_empty() {
+        println!("  per episode: {}", show(&terms, 1.0));
+    }
+    if !other.is_empty() {
+        println!("  per step: {}", show(&other, steps));
+    }
+}
+
 fn eval(args: EvalArgs) -> anyhow::Result<()> {
     let env: EnvId = args.env.parse()?;
     let (report, warnings) =
@@ -370,6 +393,7 @@ fn eval(args: EvalArgs) -> anyhow::Result<()> {
         report.returns.len(),
         report.mean_length()
     );
+    print_breakdown(&report);
     if warnings > 0 {
         println!("MuJoCo warnings during the evaluation: {warnings}");
     }
@@ -385,6 +409,7 @@ fn eval(args: EvalArgs) -> anyhow::Result<()> {
             std: f64,
             returns: &'a [f64],
             lengths: &'a [usize],
+            info_totals: &'a [(String, f64)],
         }
         let o = Out {
             policy: args.policy.display().to_string(),
@@ -396,6 +421,7 @@ fn eval(args: EvalArgs) -> anyhow::Result<()> {
             std: report.std_return(),
             returns: &report.returns,
             lengths: &report.lengths,
+            info_totals: &report.info_totals,
         };
         red_core::checkpoint::write_atomic(out, serde_json::to_string_pretty(&o)?.as_bytes())?;
     }

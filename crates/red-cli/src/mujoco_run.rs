@@ -1303,6 +1303,42 @@ mod tests {
     }
 
     #[test]
+    fn evaluation_breaks_the_return_into_the_tasks_reward_terms() {
+        let mut env = WatchedEnv::new(EnvId::Ant).unwrap();
+        let cfg = RunConfig::for_task(EnvId::Ant, Method::Expert);
+        let trainer = TrpoTrainer::new(cfg.trpo, 27, 8, None, 0).unwrap();
+        let report = evaluate(
+            &mut env,
+            trainer.policy(),
+            3,
+            Some(40),
+            &mut ChaCha8Rng::seed_from_u64(1),
+        )
+        .unwrap();
+        let terms: f64 = report
+            .info_totals
+            .iter()
+            .filter(|(k, _)| k.starts_with("reward_"))
+            .map(|e| e.1)
+            .sum();
+        assert!(
+            (terms - report.mean_return()).abs() < 1e-9,
+            "{terms} vs {}",
+            report.mean_return()
+        );
+        let keys: Vec<&str> = report.info_totals.iter().map(|e| e.0.as_str()).collect();
+        for k in [
+            "reward_forward",
+            "reward_ctrl",
+            "reward_contact",
+            "reward_survive",
+            "x_velocity",
+        ] {
+            assert!(keys.contains(&k), "{k} missing from {keys:?}");
+        }
+    }
+
+    #[test]
     fn non_finite_batches_are_refused_naming_what_and_when() {
         let mut env = WatchedEnv::new(EnvId::Reacher).unwrap();
         let cfg = RunConfig::for_task(EnvId::Reacher, Method::Expert);

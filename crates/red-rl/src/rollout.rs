@@ -64,6 +64,12 @@ pub struct EvalReport {
     pub returns: Vec<f64>,
     /// Length of each episode in steps.
     pub lengths: Vec<usize>,
+    /// Every entry of the steps' infos (reward terms, velocities, ...)
+    /// summed over each episode, then averaged over the episodes, in the
+    /// order the environment first reported them. Divide by
+    /// [`EvalReport::mean_length`] for a per-step mean.
+    #[serde(default)]
+    pub info_totals: Vec<(String, f64)>,
 }
 
 impl EvalReport {
@@ -146,7 +152,9 @@ fn run_episodes<E: Env + ?Sized, R: Rng + ?Sized>(
     let mut report = EvalReport {
         returns: Vec::with_capacity(episodes),
         lengths: Vec::with_capacity(episodes),
+        info_totals: Vec::new(),
     };
+    let mut totals: Vec<(&'static str, f64)> = Vec::new();
     for seed in seeds {
         let (mut obs, _) = env.reset(Some(seed))?;
         let (mut ret, mut len) = (0.0, 0);
@@ -156,6 +164,12 @@ fn run_episodes<E: Env + ?Sized, R: Rng + ?Sized>(
             let step = env.step(&clipped)?;
             ret += true_reward(&step);
             len += 1;
+            for (k, v) in step.info.iter() {
+                match totals.iter_mut().find(|e| e.0 == k) {
+                    Some(e) => e.1 += v,
+                    None => totals.push((k, v)),
+                }
+            }
             if step.terminated || step.truncated || max_steps.is_some_and(|m| len >= m) {
                 break;
             }
@@ -164,6 +178,11 @@ fn run_episodes<E: Env + ?Sized, R: Rng + ?Sized>(
         report.returns.push(ret);
         report.lengths.push(len);
     }
+    let n = episodes.max(1) as f64;
+    report.info_totals = totals
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v / n))
+        .collect();
     Ok(report)
 }
 
