@@ -162,10 +162,9 @@ pub struct RunConfig {
     /// trained to 5M, log-std -2, 5M steps): with reward 0.9 a still or
     /// slow ant scored nearly as well as the expert (imitation reward
     /// 0.81-0.91 per step while walking or standing) and two of three seeds
-    /// left the cloned gait (seed 1 stood still: 454.68 at 1.47M; seed 2's
-    /// training return fell from ~3400 to ~1700 by 3M); seed 0 ended at
-    /// 3668.34. With reward 0.5: seed 0 3755.45, seed 1 see
-    /// docs/results/mujoco.md.
+    /// left the cloned gait (seed 1 stood still: 454.68 at 1.47M; seed 2
+    /// slowed after 2.3M and ended at 859.98); seed 0 ended at 3668.34.
+    /// With reward 0.5: seed 0 3755.45, seed 1 3890.00 (expert 3630.28).
     pub sigma1: Sigma1,
     /// GAIL's discriminator (OpenAI baselines' settings).
     pub gail: GailConfig,
