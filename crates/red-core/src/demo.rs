@@ -50,8 +50,38 @@ use crate::{Error, Result};
 
 /// Name written in the `format` field of every demo file.
 pub const FORMAT_NAME: &str = "red-demos";
-/// The version of the format this build writes.
-pub const FORMAT_VERSION: u32 = 1;
+/// The version of the format this build writes. Version 2 added the
+/// optional `source` and `scenario` fields; version 1 files (without them)
+/// are read as before.
+pub const FORMAT_VERSION: u32 = 2;
+/// The oldest version this build reads.
+pub const OLDEST_READABLE_VERSION: u32 = 1;
+
+/// Who or what made a set of demonstrations. Tables call a person's
+/// demonstration a "demonstration", not an "expert".
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DemoSource {
+    /// A person at the controls (for example `red-cli drive record`).
+    Person,
+    /// A scripted driver or controller.
+    Script,
+    /// A trained policy.
+    Policy,
+    /// Converted from another format; the maker is not known.
+    Imported,
+}
+
+impl DemoSource {
+    /// How a table names the demonstrations' row: `"demonstration"` for a
+    /// person's, `"expert"` otherwise.
+    pub fn row_label(source: Option<Self>) -> &'static str {
+        match source {
+            Some(Self::Person) => "demonstration",
+            _ => "expert",
+        }
+    }
+}
 
 /// How a trajectory ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -113,6 +143,15 @@ pub struct Demos {
     /// Control frequency in Hz, if meaningful.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub control_hz: Option<f64>,
+    /// Who or what made the demonstrations, if known (version 2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<DemoSource>,
+    /// The environment's own settings the demonstrations were made under
+    /// (version 2): for `drive`, the road (`red_drive::DriveConfig`, track
+    /// seed included), so that every command using the file uses that road.
+    /// The environment's crate reads and checks it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scenario: Option<serde_json::Value>,
     /// The trajectories.
     pub trajectories: Vec<Trajectory>,
 }
@@ -132,6 +171,8 @@ impl Demos {
             obs_dim,
             act_dim,
             control_hz,
+            source: None,
+            scenario: None,
             trajectories: Vec::new(),
         }
     }
@@ -406,9 +447,10 @@ fn check_header(format: &str, version: u32) -> std::result::Result<(), String> {
             "format is \"{format}\", expected \"{FORMAT_NAME}\" (not a red demo file)"
         ));
     }
-    if version != FORMAT_VERSION {
+    if !(OLDEST_READABLE_VERSION..=FORMAT_VERSION).contains(&version) {
         return Err(format!(
-            "unknown version {version}: this build reads version {FORMAT_VERSION}"
+            "unknown version {version}: this build reads versions \
+             {OLDEST_READABLE_VERSION} to {FORMAT_VERSION}"
         ));
     }
     Ok(())
@@ -466,7 +508,10 @@ impl Probe {
                     return Err(demo_err(
                         None,
                         None,
-                        format!("unknown version {v}: this build reads version {FORMAT_VERSION}"),
+                        format!(
+                            "unknown version {v}: this build reads versions \
+                             {OLDEST_READABLE_VERSION} to {FORMAT_VERSION}"
+                        ),
                     ));
                 }
             },

@@ -61,7 +61,7 @@ pub mod space;
 pub mod wrappers;
 
 pub use check::{CheckReport, check_env};
-pub use demo::{Demos, EpisodeEnd, Trajectory};
+pub use demo::{DemoSource, Demos, EpisodeEnd, Trajectory};
 pub use env::{Env, Info, Step, TRUE_REWARD};
 pub use error::{Error, Result};
 pub use reward::RewardModel;

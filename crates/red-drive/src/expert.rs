@@ -10,7 +10,7 @@
 //! sum of squared lane changes, so it never needs a two-lane change.
 
 use rand::Rng;
-use red_core::{Demos, Env, EpisodeEnd, Seeder, Stream, Trajectory};
+use red_core::{DemoSource, Demos, Env, EpisodeEnd, Seeder, Stream, Trajectory};
 
 use crate::config::{ACT_DIM, CONTROL_HZ, DriveConfig, NUM_LANES, OBS_DIM};
 use crate::env::{CarState, INFO_SUCCESS, World, make_env};
@@ -196,12 +196,15 @@ pub fn expert_episode(config: &DriveConfig, seed: u64) -> Result<(Trajectory, Ep
 
 /// `episodes` scripted demonstrations on `config`'s track, with true
 /// rewards; episode `k`'s reset seed is the `k`-th number of the
-/// [`Stream::Demo`] stream of `seed`.
+/// [`Stream::Demo`] stream of `seed`. The set records its road
+/// ([`crate::scenario`]) and that a script made it.
 ///
 /// # Errors
 /// [`crate::Error::InvalidConfig`] for an invalid config.
 pub fn expert_demos(config: &DriveConfig, episodes: usize, seed: u64) -> Result<Demos> {
     let mut demos = Demos::new(ENV_ID, OBS_DIM, ACT_DIM, Some(CONTROL_HZ));
+    demos.source = Some(DemoSource::Script);
+    crate::scenario::set_road(&mut demos, config)?;
     let mut rng = Seeder::new(seed).rng(Stream::Demo);
     for _ in 0..episodes {
         let (t, _) = expert_episode(config, rng.next_u64())?;

@@ -29,6 +29,7 @@ pub mod error;
 pub mod expert;
 pub mod record;
 pub mod render;
+pub mod scenario;
 pub mod track;
 
 pub use config::{ACT_DIM, CONTROL_HZ, DriveConfig, NUM_RAYS, OBS_DIM};

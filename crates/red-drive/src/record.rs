@@ -235,9 +235,14 @@ impl Recorder {
     }
 
     /// The demonstration recorded so far: one trajectory (none if no step
-    /// was taken). An episode the driver quit counts as truncated.
+    /// was taken), marked as a person's and carrying its road
+    /// ([`crate::scenario`]). An episode the driver quit counts as
+    /// truncated.
     pub fn finish(self) -> Demos {
         let mut demos = Demos::new(ENV_ID, OBS_DIM, ACT_DIM, Some(CONTROL_HZ));
+        demos.source = Some(red_core::DemoSource::Person);
+        // The road was validated by `new`, so this cannot fail.
+        let _ = crate::scenario::set_road(&mut demos, self.env.inner().config());
         if !self.actions.is_empty() {
             let end = match self.status {
                 RecordStatus::Ended(end) => end,

@@ -136,6 +136,7 @@ pub fn replay(config: &DriveConfig, trajectory: &Trajectory) -> Result<(Vec<CarS
     let mut poses = vec![*env.car()];
     let mut end = PathEnd::Stopped;
     let mut mismatched = 0usize;
+    let mut first_mismatch = None;
     let n = trajectory.actions.len();
     for (t, a) in trajectory.actions.iter().enumerate() {
         if let Some(rec) = trajectory.observations.get(t)
@@ -146,6 +147,7 @@ pub fn replay(config: &DriveConfig, trajectory: &Trajectory) -> Result<(Vec<CarS
                 .any(|(r, o)| (r - o).abs() > 0.01)
         {
             mismatched += 1;
+            first_mismatch.get_or_insert(t);
         }
         let step = red_core::Env::step(&mut env, a)?;
         obs = step.observation;
@@ -180,8 +182,9 @@ pub fn replay(config: &DriveConfig, trajectory: &Trajectory) -> Result<(Vec<CarS
     if mismatched * 20 > n {
         return Err(Error::Replay {
             reason: format!(
-                "the lidar readings of {mismatched} of {n} steps differ from the recorded ones; \
-                 {other_track}"
+                "the lidar readings of {mismatched} of {n} steps differ from the recorded ones \
+                 (first at step {}); {other_track}",
+                first_mismatch.unwrap_or(0)
             ),
         });
     }
