@@ -12,8 +12,7 @@ use red_core::Demos;
 use red_drive::record::{KeyKind, RecordStatus};
 use red_drive::render::demo_path;
 use red_drive::{
-    CONTROL_HZ, DriveConfig, DriveKey, ENV_ID, KeyEvent, OBS_DIM, Recorder, RenderOptions,
-    expert_demos, render_png,
+    CONTROL_HZ, DriveConfig, DriveKey, KeyEvent, Recorder, RenderOptions, expert_demos, render_png,
 };
 
 /// Arguments of `red-cli drive`.
@@ -91,8 +90,8 @@ pub struct RecordArgs {
 /// Arguments of `red-cli drive render`.
 #[derive(Debug, Args)]
 pub struct RenderArgs {
-    /// Demonstration file (made on the same road: same config and track
-    /// seed).
+    /// Demonstration file; drawn on the road it records (files without
+    /// one: the default road, or the one given below).
     #[arg(long)]
     pub demo: PathBuf,
     /// PNG to write.
@@ -208,17 +207,14 @@ fn summarise(demos: &Demos, config: &DriveConfig) {
 }
 
 fn render(args: RenderArgs) -> anyhow::Result<()> {
-    let config = load_config(&args.track)?;
-    let demos =
-        Demos::read(&args.demo).with_context(|| format!("reading {}", args.demo.display()))?;
-    if demos.env_id != ENV_ID || demos.obs_dim != OBS_DIM {
-        bail!(
-            "{} holds `{}` demonstrations with {} observation numbers; `drive render` needs \
-             `{ENV_ID}` ones with {OBS_DIM}",
-            args.demo.display(),
-            demos.env_id,
-            demos.obs_dim
-        );
+    let requested = if args.track.config.is_some() || args.track.track_seed.is_some() {
+        Some(load_config(&args.track)?)
+    } else {
+        None
+    };
+    let (demos, config, note) = red_experiments::drive::load_demo(&args.demo, requested, false)?;
+    if let Some(n) = note {
+        eprintln!("note: {n}");
     }
     const COLOURS: [[u8; 3]; 6] = [
         [20, 90, 200],

@@ -24,6 +24,11 @@ pub fn install() {
     });
 }
 
+/// The flag a library run polls: raised by Ctrl-C.
+pub fn flag() -> &'static AtomicBool {
+    &REQUESTED
+}
+
 /// Whether the user asked the run to stop.
 pub fn requested() -> bool {
     REQUESTED.load(Ordering::SeqCst)

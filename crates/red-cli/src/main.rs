@@ -42,7 +42,6 @@ mod interrupt;
 mod mujoco;
 mod mujoco_run;
 mod mujoco_table;
-mod plot;
 mod support;
 mod toy;
 

@@ -22,7 +22,7 @@ use red_mujoco::EnvId;
 use crate::interrupt;
 use crate::mujoco::{default_demo, expert_dir, short_name};
 use crate::mujoco_run::{self, EvalFile, Method, Outcome, RunConfig, RunOptions};
-use crate::plot::{Panel, Series, draw_panels, mean_std};
+use red_experiments::plot::{Panel, Series, draw_panels, mean_std};
 
 /// Arguments of `red-cli mujoco table`.
 #[derive(Debug, Args)]

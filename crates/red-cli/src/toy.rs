@@ -31,7 +31,7 @@ use red_support::{
     SupportEstimatorConfig, SupportModel, calibrate_sigma1, held_out_scores, no_progress,
 };
 
-use crate::plot::{Panel, Series, draw_panels, mean_std};
+use red_experiments::plot::{Panel, Series, draw_panels, mean_std};
 
 /// The imitation methods of the simple domain.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, ValueEnum, Serialize, Deserialize)]
@@ -764,7 +764,8 @@ fn plot_fig2(args: &ToyArgs, jobs: &[Job], done: &[RunResult], out: &Path) -> an
         &panels,
         cols,
         (600 * cols as u32, 420 * rows),
-    )
+    )?;
+    Ok(())
 }
 
 fn plot_fig3(args: &ToyArgs, jobs: &[Job], done: &[RunResult], out: &Path) -> anyhow::Result<()> {
@@ -822,7 +823,8 @@ fn plot_fig3(args: &ToyArgs, jobs: &[Job], done: &[RunResult], out: &Path) -> an
         &panels,
         cols,
         (600 * cols as u32, 420 * rows),
-    )
+    )?;
+    Ok(())
 }
 
 fn final_table(args: &ToyArgs, jobs: &[Job], done: &[RunResult]) -> String {

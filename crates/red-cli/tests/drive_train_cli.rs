@@ -29,7 +29,16 @@ fn cli(args: &[&str], dir: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_red-cli"))
         .args(["drive", "--train-config"])
         .arg(&cfg)
-        .args(["--rnd-epochs", "2", "--bc-epochs", "3", "--eval-runs", "2"])
+        .args([
+            "--rnd-epochs",
+            "2",
+            "--bc-epochs",
+            "3",
+            "--eval-runs",
+            "2",
+            "--eval-roads",
+            "2",
+        ])
         .arg("--out-dir")
         .arg(dir)
         .args(args)
@@ -100,9 +109,15 @@ fn all_methods_tiny_run_writes_outputs_and_is_reproducible() {
     let methods = eval["methods"].as_array().unwrap();
     assert_eq!(methods.len(), 5);
     for m in methods {
-        assert_eq!(m["distances"].as_array().unwrap().len(), 2, "{m}");
+        let f = &m["final_policy"];
+        assert_eq!(f["distances"].as_array().unwrap().len(), 2, "{m}");
+        assert_eq!(
+            f["unseen_roads"]["track_seeds"].as_array().unwrap().len(),
+            2,
+            "{m}"
+        );
         if m["method"] != "bc" {
-            assert!(m["final_policy"].is_object(), "{m}");
+            assert!(m["selected_by_own_reward"].is_object(), "{m}");
             assert!(m["best_true_distance_policy"].is_object(), "{m}");
         }
     }
@@ -197,4 +212,129 @@ fn bad_demo_and_bad_resume_are_refused_with_clear_errors() {
     );
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("dagger"));
+}
+
+/// A demonstration on another road (track seed 9) written by
+/// `red-cli drive expert`.
+fn demo_on_road_9(dir: &Path) -> PathBuf {
+    let path = dir.join("road9.json");
+    let o = Command::new(env!("CARGO_BIN_EXE_red-cli"))
+        .args([
+            "drive",
+            "expert",
+            "--track-seed",
+            "9",
+            "--sig-digits",
+            "7",
+            "--out",
+        ])
+        .arg(&path)
+        .output()
+        .unwrap();
+    ok(&o);
+    path
+}
+
+#[test]
+fn a_demo_on_another_road_trains_on_its_road_and_other_roads_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let demo = demo_on_road_9(dir.path());
+    let d = demo.to_str().unwrap();
+    let o = cli(
+        &[
+            "--demo",
+            d,
+            "--methods",
+            "bc",
+            "--steps",
+            "10",
+            "--name",
+            "r9",
+        ],
+        dir.path(),
+    );
+    ok(&o);
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(table.contains("track seed 9"), "{table}");
+    let config: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("r9/config.json")).unwrap())
+            .unwrap();
+    assert_eq!(config["drive"]["track_seed"], 9);
+    let eval: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("r9/eval.json")).unwrap())
+            .unwrap();
+    assert_eq!(eval["track_seed"], 9);
+    // Unseen roads never include the demo's own.
+    let seeds = eval["unseen_track_seeds"].as_array().unwrap();
+    assert!(!seeds.iter().any(|s| s == 9), "{eval}");
+
+    // Another road is refused before any training, naming both.
+    let start = std::time::Instant::now();
+    let o = cli(
+        &[
+            "--demo",
+            d,
+            "--methods",
+            "red",
+            "--track-seed",
+            "4",
+            "--name",
+            "x",
+        ],
+        dir.path(),
+    );
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("road9.json")
+            && err.contains("track_seed: 9 -> 4")
+            && err.contains("--other-road"),
+        "{err}"
+    );
+    assert!(!dir.path().join("x").exists(), "nothing was written");
+    assert!(start.elapsed().as_secs() < 20);
+
+    // A file without its road, used on the wrong (default) road, is refused
+    // with the step where it stops fitting.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&demo).unwrap()).unwrap();
+    v.as_object_mut().unwrap().remove("scenario");
+    v["version"] = 1.into();
+    let old = dir.path().join("old.json");
+    std::fs::write(&old, serde_json::to_string(&v).unwrap()).unwrap();
+    let o = cli(
+        &["--demo", old.to_str().unwrap(), "--name", "y"],
+        dir.path(),
+    );
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("records no road") || err.contains("does not fit"),
+        "{err}"
+    );
+    assert!(err.contains("step"), "{err}");
+}
+
+#[test]
+fn the_table_and_numbers_are_written_when_a_picture_cannot_be() {
+    let dir = tempfile::tempdir().unwrap();
+    // A folder where the picture should go: the picture cannot be written.
+    std::fs::create_dir_all(dir.path().join("p/eval_paths.png/blocked")).unwrap();
+    let o = train(dir.path(), "p", "red,bc", &[]);
+    ok(&o);
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(table.contains("warning: eval_paths.png"), "{table}");
+    assert!(table.contains("red") && table.contains("% road"), "{table}");
+    let eval: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("p/eval.json")).unwrap())
+            .unwrap();
+    assert_eq!(eval["methods"].as_array().unwrap().len(), 2);
+    assert!(!eval["warnings"].as_array().unwrap().is_empty());
+    assert!(
+        std::fs::metadata(dir.path().join("p/metrics.csv"))
+            .unwrap()
+            .len()
+            > 0
+    );
+    assert!(!dir.path().join("p/checkpoint.json").exists());
 }

@@ -14,7 +14,8 @@ use crate::env::{CarState, DriveEnv, INFO_COLLISION, INFO_SUCCESS};
 use crate::{Error, Result};
 
 /// How a drawn path ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum PathEnd {
     /// Reached the end of the road (drawn as a ring).
     Success,

@@ -3,8 +3,16 @@
 
 use std::path::Path;
 
-use anyhow::{Context, anyhow};
 use plotters::prelude::*;
+
+use crate::{Error, Result};
+
+fn plot_err(path: &Path, what: impl std::fmt::Display) -> Error {
+    Error::Plot {
+        path: path.to_path_buf(),
+        reason: what.to_string(),
+    }
+}
 
 /// One line of a panel, with an optional band (lower, upper) per point.
 #[derive(Debug, Clone)]
@@ -51,36 +59,43 @@ pub fn palette(i: usize) -> RGBColor {
 /// Draws `panels` in a grid of `cols` columns into a PNG of
 /// `width x height` pixels.
 ///
+/// The picture is drawn to a temporary file beside `path` and renamed over
+/// it, so `path` is either the old picture or the new one, whole.
+///
 /// # Errors
-/// If the file cannot be written or a panel has no finite data.
+/// [`Error::Plot`] naming the file if it cannot be written or a panel has
+/// no finite data.
 pub fn draw_panels(
     path: &Path,
     panels: &[Panel],
     cols: usize,
     (width, height): (u32, u32),
-) -> anyhow::Result<()> {
+) -> Result<()> {
     let cols = cols.max(1);
     let rows = panels.len().div_ceil(cols).max(1);
-    let root = BitMapBackend::new(path, (width, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
-    let areas = root.split_evenly((rows, cols));
-    for (panel, area) in panels.iter().zip(areas.iter()) {
-        draw_panel(area, panel).with_context(|| format!("drawing panel {:?}", panel.title))?;
+    let tmp = crate::run_dir::partial_path(path);
+    {
+        let root = BitMapBackend::new(&tmp, (width, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        let areas = root.split_evenly((rows, cols));
+        for (panel, area) in panels.iter().zip(areas.iter()) {
+            draw_panel(area, panel)
+                .map_err(|e| plot_err(path, format!("panel {:?}: {e}", panel.title)))?;
+        }
+        root.present().map_err(|e| plot_err(path, e))?;
     }
-    root.present()
-        .map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
-    Ok(())
+    crate::run_dir::commit_partial(&tmp, path)
 }
 
 fn draw_panel(
     area: &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
     panel: &Panel,
-) -> anyhow::Result<()> {
+) -> std::result::Result<(), String> {
     let xs = panel
         .series
         .iter()
         .flat_map(|s| s.points.iter().map(|p| p.0));
-    let (x0, x1) = bounds(xs).ok_or_else(|| anyhow!("no data"))?;
+    let (x0, x1) = bounds(xs).ok_or_else(|| "no finite data".to_string())?;
     let (y0, y1) = match panel.y_range {
         Some(r) => r,
         None => {
@@ -90,7 +105,7 @@ fn draw_panel(
                     .map(|p| p.1)
                     .chain(s.band.iter().flat_map(|b| [b.1, b.2]))
             });
-            let (lo, hi) = bounds(ys).ok_or_else(|| anyhow!("no data"))?;
+            let (lo, hi) = bounds(ys).ok_or_else(|| "no finite data".to_string())?;
             let pad = ((hi - lo) * 0.05).max(1e-6);
             (lo - pad, hi + pad)
         }
@@ -102,14 +117,14 @@ fn draw_panel(
         .x_label_area_size(40)
         .y_label_area_size(55)
         .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| anyhow!("{e}"))?;
+        .map_err(|e| e.to_string())?;
     chart
         .configure_mesh()
         .x_desc(&panel.x_label)
         .y_desc(&panel.y_label)
         .light_line_style(WHITE.mix(0.0))
         .draw()
-        .map_err(|e| anyhow!("{e}"))?;
+        .map_err(|e| e.to_string())?;
     for (i, s) in panel.series.iter().enumerate() {
         let colour = palette(i);
         if !s.band.is_empty() {
@@ -120,14 +135,14 @@ fn draw_panel(
                     poly,
                     colour.mix(0.18).filled(),
                 )))
-                .map_err(|e| anyhow!("{e}"))?;
+                .map_err(|e| e.to_string())?;
         }
         chart
             .draw_series(LineSeries::new(
                 s.points.iter().copied(),
                 colour.stroke_width(2),
             ))
-            .map_err(|e| anyhow!("{e}"))?
+            .map_err(|e| e.to_string())?
             .label(&s.label)
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
@@ -139,7 +154,7 @@ fn draw_panel(
         .border_style(BLACK.mix(0.3))
         .position(SeriesLabelPosition::LowerRight)
         .draw()
-        .map_err(|e| anyhow!("{e}"))?;
+        .map_err(|e| e.to_string())?;
     Ok(())
 }
 
