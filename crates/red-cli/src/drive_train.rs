@@ -6,12 +6,11 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
-use red_experiments::Progress;
 use red_experiments::drive::{self, DriveOutcome, DriveRunConfig, DriveTrainConfig};
 
 use crate::drive::{TrackArgs, load_config};
 use crate::interrupt;
+use crate::progress::Bar;
 
 /// Arguments of `red-cli drive --demo FILE` (training and evaluation).
 #[derive(Debug, Args)]
@@ -80,53 +79,6 @@ pub struct TrainArgs {
     pub track: TrackArgs,
 }
 
-/// A progress bar per training phase, notes on stderr, and the
-/// `--interrupt-after` testing aid.
-struct Bar {
-    bar: Option<ProgressBar>,
-    last: u64,
-    interrupt_after: Option<u64>,
-}
-
-impl Progress for Bar {
-    fn note(&mut self, text: &str) {
-        eprintln!("{text}");
-    }
-
-    fn start(&mut self, label: &str, total: u64, done: u64) {
-        let bar = ProgressBar::new(total);
-        bar.set_style(
-            ProgressStyle::with_template(&format!(
-                "{label} {{bar:30}} {{pos}}/{{len}} steps, {{elapsed}} ({{eta}} left) {{msg}}"
-            ))
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        bar.set_position(done);
-        self.bar = Some(bar);
-        self.last = done;
-    }
-
-    fn advance(&mut self, done: u64, message: &str) {
-        if let Some(b) = &self.bar {
-            b.set_position(done);
-            b.set_message(message.to_string());
-        }
-        if let Some(n) = self.interrupt_after.as_mut() {
-            *n = n.saturating_sub(done.saturating_sub(self.last));
-            if *n == 0 {
-                interrupt::request();
-            }
-        }
-        self.last = done;
-    }
-
-    fn finish(&mut self) {
-        if let Some(b) = self.bar.take() {
-            b.finish_and_clear();
-        }
-    }
-}
-
 /// The run's settings from the command line, and the demonstration.
 fn run_config(args: &TrainArgs) -> anyhow::Result<(DriveRunConfig, red_core::Demos)> {
     let demo = args.demo.clone().context("--demo is required")?;
@@ -174,11 +126,7 @@ fn run_config(args: &TrainArgs) -> anyhow::Result<(DriveRunConfig, red_core::Dem
 /// Runs `red-cli drive --demo FILE` (or `--resume DIR`).
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     interrupt::install();
-    let mut bar = Bar {
-        bar: None,
-        last: 0,
-        interrupt_after: args.interrupt_after,
-    };
+    let mut bar = Bar::new(false, args.interrupt_after);
     let (outcome, out) = match &args.resume {
         Some(dir) => (
             drive::resume(dir, interrupt::flag(), &mut bar)?,

@@ -42,8 +42,20 @@ mod interrupt;
 mod mujoco;
 mod mujoco_run;
 mod mujoco_table;
+mod progress;
 mod support;
 mod toy;
+
+/// A config error named by its command-line flag (`gamma` -> `--gamma`),
+/// other errors as they are.
+pub(crate) fn flag_error(e: red_experiments::Error) -> anyhow::Error {
+    match e {
+        red_experiments::Error::InvalidConfig { field, reason } => {
+            anyhow::anyhow!("--{}: {reason}", field.replace('_', "-"))
+        }
+        other => other.into(),
+    }
+}
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();

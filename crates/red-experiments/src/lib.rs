@@ -26,13 +26,14 @@ pub mod drive;
 pub mod error;
 pub mod plot;
 pub mod run_dir;
+pub mod toy;
 
 pub use error::{Error, Result, ResultExt};
 pub use run_dir::RunDir;
 
 /// What a long experiment tells its caller while it runs. Every method has
 /// a default that does nothing; a front end draws bars or prints lines.
-pub trait Progress {
+pub trait Progress: Send {
     /// A line of information (a fitted `σ1`, the road assumed, ...).
     fn note(&mut self, text: &str) {
         let _ = text;
