@@ -241,3 +241,53 @@ fn environment_configs() {
         &[("/frame_skip", json!(0), "frame_skip")],
     );
 }
+
+#[test]
+fn experiment_configs() {
+    check::<red_experiments::drive::DriveTrainConfig, _>(
+        "DriveTrainConfig",
+        |c| c.validate(),
+        &[
+            ("/sigma1/quantile", json!(0.0), "sigma1.quantile"),
+            ("/sigma1/reward", json!(1.0), "sigma1.reward"),
+            ("/sigma1/folds", json!(1), "sigma1.folds"),
+            ("/reward_update_pairs", json!(0), "reward_update_pairs"),
+            ("/svg/gamma", json!(1.5), "gamma"),
+            ("/policy/hidden", json!([0]), "train.policy"),
+            ("/select_episodes", json!(0), "select_episodes"),
+        ],
+    );
+    check::<red_experiments::toy::ToyConfig, _>(
+        "ToyConfig",
+        |c| c.validate(),
+        &[
+            ("/n", json!([0]), "n"),
+            ("/methods", json!([]), "methods"),
+            ("/seeds", json!(0), "seeds"),
+            ("/steps", json!(0), "steps"),
+            ("/eval_interval", json!(0), "eval_interval"),
+            ("/gamma", json!(1.5), "gamma"),
+            ("/rnd_ensemble", json!(0), "rnd_ensemble"),
+            ("/train_frequency", json!(0), "train_frequency"),
+            ("/epochs", json!(0), "epochs"),
+        ],
+    );
+    // The run config has no Default (it needs a demo and a road): its
+    // fields are checked through a made one.
+    let mut run = red_experiments::drive::DriveRunConfig::new(
+        "demo.json",
+        red_drive::DriveConfig::default(),
+    );
+    run.validate().expect("the defaults validate");
+    run.eval_runs = 0;
+    assert!(run.validate().unwrap_err().to_string().contains("eval_runs"));
+    run.eval_runs = 5;
+    run.methods = vec!["dagger".into()];
+    assert!(run.validate().unwrap_err().to_string().contains("dagger"));
+    let mut v = serde_json::to_value(&run).expect("serialise");
+    v.as_object_mut()
+        .expect("object")
+        .insert("no_such_setting".into(), json!(1));
+    let err = serde_json::from_value::<red_experiments::drive::DriveRunConfig>(v).unwrap_err();
+    assert!(err.to_string().contains("no_such_setting"), "{err}");
+}
