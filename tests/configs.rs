@@ -274,13 +274,16 @@ fn experiment_configs() {
     );
     // The run config has no Default (it needs a demo and a road): its
     // fields are checked through a made one.
-    let mut run = red_experiments::drive::DriveRunConfig::new(
-        "demo.json",
-        red_drive::DriveConfig::default(),
-    );
+    let mut run =
+        red_experiments::drive::DriveRunConfig::new("demo.json", red_drive::DriveConfig::default());
     run.validate().expect("the defaults validate");
     run.eval_runs = 0;
-    assert!(run.validate().unwrap_err().to_string().contains("eval_runs"));
+    assert!(
+        run.validate()
+            .unwrap_err()
+            .to_string()
+            .contains("eval_runs")
+    );
     run.eval_runs = 5;
     run.methods = vec!["dagger".into()];
     assert!(run.validate().unwrap_err().to_string().contains("dagger"));

@@ -68,3 +68,10 @@ pub use reward::RewardModel;
 pub use seeding::{Seeder, Stream};
 pub use space::{BoxSpace, Space};
 pub use wrappers::{RewardWrapper, TimeLimit};
+
+// The exact versions of the crates this crate's API takes and returns,
+// so that a dependant names the same types (a second version of ndarray or
+// rand in a build gives type errors that never mention versions).
+pub use ndarray;
+pub use rand;
+pub use rand_chacha;

@@ -40,5 +40,11 @@ pub use record::{DriveKey, KeyEvent, Recorder};
 pub use render::{PathEnd, PathSpec, RenderOptions, render_png};
 pub use track::{Obstacle, Track};
 
+// The exact versions of the crates this crate's API takes and returns,
+// so that a dependant names the same types (a second version of ndarray or
+// rand in a build gives type errors that never mention versions).
+pub use rand;
+pub use rand_chacha;
+
 /// The environment id written in demonstration files of this scenario.
 pub const ENV_ID: &str = "drive";

@@ -31,6 +31,13 @@ pub mod toy;
 pub use error::{Error, Result, ResultExt};
 pub use run_dir::RunDir;
 
+// The exact versions of the crates this crate's API takes and returns,
+// so that a dependant names the same types (a second version of ndarray or
+// rand in a build gives type errors that never mention versions).
+pub use ndarray;
+pub use rand;
+pub use rand_chacha;
+
 /// What a long experiment tells its caller while it runs. Every method has
 /// a default that does nothing; a front end draws bars or prints lines.
 pub trait Progress: Send {

@@ -56,6 +56,12 @@ pub use registry::{BoxedEnv, EnvId, make};
 pub use simulation::Simulation;
 pub use walker2d::{Walker2d, Walker2dConfig};
 
+// The exact versions of the crates this crate's API takes and returns,
+// so that a dependant names the same types (a second version of ndarray or
+// rand in a build gives type errors that never mention versions).
+pub use rand;
+pub use rand_chacha;
+
 /// The version string of the MuJoCo library loaded at run time (this crate
 /// binds 3.17.0).
 pub fn library_version() -> &'static str {

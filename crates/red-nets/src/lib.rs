@@ -56,3 +56,10 @@ pub use grads::{Gradients, LayerGrad, clip_grad_norm};
 pub use loss::{mse_loss, mse_loss_into};
 pub use mlp::{Layer, MLP_FORMAT, MLP_FORMAT_VERSION, Mlp, Tape, Workspace};
 pub use optim::{ADAM_FORMAT, ADAM_FORMAT_VERSION, Adam, AdamConfig, Optimizer, Sgd, SgdConfig};
+
+// The exact versions of the crates this crate's API takes and returns,
+// so that a dependant names the same types (a second version of ndarray or
+// rand in a build gives type errors that never mention versions).
+pub use ndarray;
+pub use rand;
+pub use rand_chacha;

@@ -18,3 +18,10 @@ pub mod svg;
 pub mod trpo;
 
 pub use error::{Error, Result};
+
+// The exact versions of the crates this crate's API takes and returns,
+// so that a dependant names the same types (a second version of ndarray or
+// rand in a build gives type errors that never mention versions).
+pub use ndarray;
+pub use rand;
+pub use rand_chacha;

@@ -56,3 +56,10 @@ pub use kernel_pca::{Bandwidth, Components, KernelKind, KernelPca, KernelPcaConf
 pub use reward::{RedReward, RedRewardConfig, Sigma1, calibrate_sigma1};
 pub use rnd::{Rnd, RndConfig, RndPair};
 pub use terminal::{TerminalHeuristic, TerminalHeuristicConfig};
+
+// The exact versions of the crates this crate's API takes and returns,
+// so that a dependant names the same types (a second version of ndarray or
+// rand in a build gives type errors that never mention versions).
+pub use ndarray;
+pub use rand;
+pub use rand_chacha;
