@@ -12,8 +12,8 @@ use red_core::Demos;
 use red_drive::record::{KeyKind, RecordStatus};
 use red_drive::render::demo_path;
 use red_drive::{
-    CONTROL_HZ, DriveConfig, DriveKey, ENV_ID, KeyEvent, OBS_DIM, Recorder, RenderOptions,
-    expert_demos, render_png,
+    CONTROL_HZ, DriveConfig, DriveKey, ENV_ID, HumanConfig, KeyEvent, OBS_DIM, Recorder,
+    RenderOptions, expert_demos, render_png,
 };
 
 /// Arguments of `red-cli drive`.
@@ -32,7 +32,9 @@ pub struct DriveArgs {
 #[derive(Debug, Subcommand)]
 pub enum DriveCommand {
     /// Scripted demonstrations: an expert that knows the layout drives at
-    /// about 100 km/h around the obstacles.
+    /// about 100 km/h around the obstacles (`--style script`), or a
+    /// person-like driver presses keys through the recorder (`--style
+    /// human`).
     Expert(ExpertArgs),
     /// Drive yourself in the terminal (arrows: steer, more/less
     /// accelerator; q, Esc or Ctrl-C: stop) and save the demonstration.
@@ -69,9 +71,24 @@ pub struct ExpertArgs {
     /// Round every number to this many significant digits (smaller files).
     #[arg(long)]
     pub sig_digits: Option<usize>,
+    /// Who drives: `script`, the smooth expert that knows the whole layout,
+    /// or `human`, a script that drives like a person at the keyboard
+    /// (key taps through the recorder's key model, reaction delays, lane
+    /// wobble, only the 100 m ahead in view; `red_drive::human`).
+    #[arg(long, value_enum, default_value_t = ExpertStyle::Script)]
+    pub style: ExpertStyle,
     /// The road.
     #[command(flatten)]
     pub track: TrackArgs,
+}
+
+/// Who drives in `red-cli drive expert`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ExpertStyle {
+    /// The scripted expert ([`red_drive::Expert`]).
+    Script,
+    /// The person-like driver ([`red_drive::HumanDriver`]).
+    Human,
 }
 
 /// Arguments of `red-cli drive record`.
@@ -162,7 +179,12 @@ fn expert(args: ExpertArgs) -> anyhow::Result<()> {
     if args.episodes == 0 {
         bail!("--episodes must be at least 1");
     }
-    let mut demos = expert_demos(&config, args.episodes, args.seed)?;
+    let mut demos = match args.style {
+        ExpertStyle::Script => expert_demos(&config, args.episodes, args.seed)?,
+        ExpertStyle::Human => {
+            red_drive::human_demos(&config, &HumanConfig::default(), args.episodes, args.seed)?
+        }
+    };
     if let Some(d) = args.sig_digits {
         if d == 0 {
             bail!("--sig-digits must be at least 1");
@@ -183,8 +205,12 @@ fn expert(args: ExpertArgs) -> anyhow::Result<()> {
     demos
         .write(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
+    let who = match args.style {
+        ExpertStyle::Script => "scripted expert",
+        ExpertStyle::Human => "person-like (human-style script)",
+    };
     println!(
-        "{}: {} expert episode(s) on track seed {}",
+        "{}: {} {who} episode(s) on track seed {}",
         args.out.display(),
         demos.trajectories.len(),
         config.track_seed
@@ -518,6 +544,7 @@ mod tests {
             episodes: 2,
             seed: 1,
             sig_digits: Some(6),
+            style: ExpertStyle::Script,
             track: track(),
         })
         .unwrap();

@@ -46,6 +46,11 @@ use crate::record::{
 };
 use crate::{Error, Result};
 
+/// Time constant (s) of the lateral correction when a stopped car is
+/// near: a little above the second a glance-react-tap loop takes, so that
+/// corrections do not overshoot.
+const URGENT_TAU: f64 = 1.2;
+
 /// The seed stream of the driver's own randomness (glances, reaction
 /// times, perception, tap rhythm), apart from the start noise's.
 pub const HUMAN_STREAM: Stream = Stream::Other(71);
@@ -236,8 +241,16 @@ impl HumanDriver {
     /// The key events for this tick, given what the recorder shows (the
     /// car, the controls, the road within the view).
     pub fn keys(&mut self, rec: &Recorder) -> Vec<KeyEvent> {
-        if self.queue.is_empty() && self.tick >= self.next_glance {
+        // Pending pedal taps do not keep it from looking (and re-deciding
+        // them); a steering burst plays out first.
+        let steering = self
+            .queue
+            .iter()
+            .any(|(_, e)| matches!(e.key, DriveKey::Left | DriveKey::Right));
+        if !steering && self.tick >= self.next_glance {
+            self.queue.clear();
             self.decide(rec);
+            self.queue.make_contiguous().sort_by_key(|(t, _)| *t);
         }
         let mut out = Vec::new();
         while let Some(&(t, e)) = self.queue.front() {
@@ -281,30 +294,34 @@ impl HumanDriver {
         // Where it will be when its keys start to act.
         let y_then = y + vy * delay;
         let lane_now = nearest_lane(&road, y);
-        let (target, blocker) = self.choose_lane(rec, lane_now);
+        let (target, blocker) = self.choose_lane(rec, lane_now, y_then + vy);
         let e = y_then - road.lane_center(target);
 
-        // Lateral speed wanted.
+        // Lateral speed wanted: proportional to the offset it will have
+        // when its keys act (a whole glance-react-tap loop takes about a
+        // second, so the time constant stays above it), faster when a
+        // stopped car in its lane leaves little road.
         let mut vy_want = vy;
         let mut slow_to = None;
-        if e.abs() > 0.5 * road.lane_width {
-            let mut speed = h.lane_change_speed;
+        if (e + vy).abs() > h.lane_tolerance {
+            let (mut tau, mut cap) = (h.settle_time, h.lane_change_speed);
             if let Some(d) = blocker {
                 // Road left before the car's nose reaches the stopped car,
                 // and the sideways distance to clear it.
                 let t_left = (d / v - delay - 0.3).max(0.1);
                 let off = (y_then - road.lane_center(lane_now)).abs();
                 let need = (road.car_width + 0.4 - off).max(0.0);
-                speed = speed.max(need / t_left);
-                if speed > h.max_lateral_speed {
-                    speed = h.max_lateral_speed;
-                    let v_ok = d / (need / h.max_lateral_speed + delay + 0.3);
-                    slow_to = Some(v_ok.max(h.min_speed_kmh / 3.6));
+                if need / t_left > e.abs() / tau {
+                    tau = URGENT_TAU;
+                    cap = h.max_lateral_speed;
+                    let fastest = (e.abs() / tau).min(cap);
+                    if need / t_left > fastest {
+                        let v_ok = d / (need / fastest + delay + 0.3);
+                        slow_to = Some(v_ok.max(h.min_speed_kmh / 3.6));
+                    }
                 }
             }
-            vy_want = -e.signum() * speed;
-        } else if (e + vy).abs() > h.lane_tolerance {
-            vy_want = (-e / h.settle_time).clamp(-h.lane_change_speed, h.lane_change_speed);
+            vy_want = -e.signum() * (e.abs() / tau).min(cap);
         }
 
         let mut at = self.tick + react;
@@ -358,7 +375,8 @@ impl HumanDriver {
                 // The wheel is back at the centre within 4 ticks of the
                 // hold's end; the next key waits for that.
                 last = Some(end + 4);
-                at = t + u64::from(h.tap_gap_ticks);
+                // The other key's taps fall between these.
+                at += 1;
             }
         }
 
@@ -388,8 +406,6 @@ impl HumanDriver {
             for k in 0..n {
                 self.queue.push_back((at + k * u64::from(h.tap_gap_ticks), KeyEvent::press(key)));
             }
-            let end = at + (n - 1) * u64::from(h.tap_gap_ticks) + 1;
-            last = Some(last.map_or(end, |l: u64| l.max(end)));
         }
         let pause = self.ticks(h.glance_min, h.glance_max);
         self.next_glance = last.unwrap_or(self.tick) + pause;
@@ -401,10 +417,16 @@ impl HumanDriver {
         gaps.iter().sum::<u32>() + HOLD_TICKS
     }
 
-    /// The lane to be in, from the stopped cars within view only, and the
+    /// The lane to be in, from the stopped cars within view only (`y_ahead`:
+    /// where it expects to be in a second), and the
     /// distance to the stopped car in the car's own lane that makes a
     /// change urgent (from the car's nose to its tail), if any.
-    fn choose_lane(&mut self, rec: &Recorder, lane_now: usize) -> (usize, Option<f64>) {
+    fn choose_lane(
+        &mut self,
+        rec: &Recorder,
+        lane_now: usize,
+        y_ahead: f64,
+    ) -> (usize, Option<f64>) {
         let road = rec.world().config();
         let car = rec.car();
         let clear = road.car_length + self.config.pass_margin;
@@ -422,14 +444,29 @@ impl HumanDriver {
             return (current, None);
         }
         let lanes: Vec<usize> = visible.iter().map(|o| o.lane).collect();
+        // Beside the first stopped car (or about to be), it may only move
+        // away from it.
+        let first = lanes[0];
         let beside = car.x > visible[0].x - clear;
-        let costs = first_lane_costs(&lanes, lane_now, beside.then_some(lane_now));
+        let allowed: [bool; NUM_LANES] = std::array::from_fn(|c| {
+            !beside || (c != first && (c < first) == (lane_now < first))
+        });
+        let costs = first_lane_costs(&lanes, lane_now, allowed);
         let best = costs.iter().copied().min().unwrap_or(u64::MAX);
         let ties: Vec<usize> = (0..NUM_LANES).filter(|&c| costs[c] == best).collect();
+        // Of equally good lanes: the one it is heading for, else the one
+        // it drifts towards, else either.
         let target = if ties.contains(&current) {
             current
         } else {
-            ties[self.rng.random_range(0..ties.len())]
+            let dist = |c: usize| (road.lane_center(c) - y_ahead).abs();
+            let nearest = ties.iter().map(|&c| dist(c)).fold(f64::INFINITY, f64::min);
+            let near: Vec<usize> = ties
+                .iter()
+                .copied()
+                .filter(|&c| dist(c) < nearest + 0.5)
+                .collect();
+            near[self.rng.random_range(0..near.len())]
         };
         self.target_lane = Some(target);
         let blocker = visible
@@ -452,14 +489,19 @@ fn nearest_lane(road: &DriveConfig, y: f64) -> usize {
         .unwrap_or(1)
 }
 
-/// For each lane `c`, the least sum of squared lane changes of a plan that
-/// is in `c` beside the first of the stopped cars in `lanes` and avoids all
-/// of them, starting from `start` (`u64::MAX` where impossible). `fixed`
-/// forces the first lane (the car is already beside that stopped car).
-fn first_lane_costs(lanes: &[usize], start: usize, fixed: Option<usize>) -> [u64; NUM_LANES] {
+/// For each lane `c`, the cost of the best plan that is in `c` beside the
+/// first of the stopped cars in `lanes` and avoids all of them, starting
+/// from `start` (`u64::MAX` where impossible or not `allowed`). A plan
+/// costs 10 per squared lane change, plus `k` for a change made only
+/// after the `k`-th stopped car: of two plans with the same changes, the
+/// one that changes lanes earlier (with more road) wins.
+fn first_lane_costs(lanes: &[usize], start: usize, allowed: [bool; NUM_LANES]) -> [u64; NUM_LANES] {
     let inf = u64::MAX / 4;
-    let step = |a: usize, b: usize| (a.abs_diff(b) * a.abs_diff(b)) as u64;
-    // Backwards: cost_to_go[c] = least cost from lane c beside car i on.
+    let step = |a: usize, b: usize, k: usize| {
+        let d = a.abs_diff(b) as u64;
+        10 * d * d + if d > 0 { k as u64 } else { 0 }
+    };
+    // Backwards: to_go[c] = least cost from lane c beside car i on.
     let mut to_go = [0u64; NUM_LANES];
     for i in (0..lanes.len()).rev() {
         let mut here = [inf; NUM_LANES];
@@ -471,7 +513,7 @@ fn first_lane_costs(lanes: &[usize], start: usize, fixed: Option<usize>) -> [u64
                 0
             } else {
                 (0..NUM_LANES)
-                    .map(|n| step(c, n).saturating_add(to_go[n]))
+                    .map(|n| step(c, n, i + 1).saturating_add(to_go[n]))
                     .min()
                     .unwrap_or(inf)
             };
@@ -480,8 +522,8 @@ fn first_lane_costs(lanes: &[usize], start: usize, fixed: Option<usize>) -> [u64
     }
     let mut out = [u64::MAX; NUM_LANES];
     for (c, o) in out.iter_mut().enumerate() {
-        if to_go[c] < inf && fixed.is_none_or(|f| f == c) {
-            *o = step(start, c) + to_go[c];
+        if to_go[c] < inf && allowed[c] {
+            *o = step(start, c, 0) + to_go[c];
         }
     }
     out
@@ -616,13 +658,18 @@ mod tests {
 
     #[test]
     fn lane_costs_avoid_the_stopped_cars() {
+        let all = [true; NUM_LANES];
         // One car ahead in the own (middle) lane: either side, one change.
-        assert_eq!(first_lane_costs(&[1], 1, None), [1, u64::MAX, 1]);
+        assert_eq!(first_lane_costs(&[1], 1, all), [10, u64::MAX, 10]);
         // Then one on the right: the left lane passes both.
-        let c = first_lane_costs(&[1, 0], 1, None);
+        let c = first_lane_costs(&[1, 0], 1, all);
         assert!(c[2] < c[0], "{c:?}");
-        // Beside a car: the lane is fixed.
-        assert_eq!(first_lane_costs(&[1, 2], 0, Some(0))[2], u64::MAX);
+        // On the right of a car on the left, the next in the middle: move
+        // right now rather than after passing it.
+        let c = first_lane_costs(&[2, 1], 1, all);
+        assert!(c[0] < c[1], "{c:?}");
+        // Not allowed: impossible.
+        assert_eq!(first_lane_costs(&[1, 2], 0, [true, false, false])[2], u64::MAX);
     }
 
     #[test]
