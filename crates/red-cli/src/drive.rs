@@ -585,4 +585,34 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         assert!(format!("{:#}", err.unwrap_err()).contains("track"));
     }
+
+    #[test]
+    fn human_style_writes_a_script_demo_that_carries_its_road() {
+        let dir = tempfile::tempdir().unwrap();
+        let demo = dir.path().join("human.json");
+        expert(ExpertArgs {
+            out: demo.clone(),
+            episodes: 1,
+            seed: 0,
+            sig_digits: Some(6),
+            style: ExpertStyle::Human,
+            track: TrackArgs {
+                config: None,
+                track_seed: Some(11),
+            },
+        })
+        .unwrap();
+        let demos = Demos::read(&demo).unwrap();
+        assert_eq!(demos.source, Some(red_core::DemoSource::Script));
+        let (road, source) = red_drive::scenario::road_of(&demos).unwrap();
+        assert_eq!(source, red_drive::scenario::RoadSource::File);
+        assert_eq!(road.track_seed, 11);
+        red_drive::scenario::check_fits(&road, &demos).unwrap();
+        let t = &demos.trajectories[0];
+        let distance: f64 = t.rewards.as_ref().unwrap().iter().sum();
+        assert_eq!(ending(t, distance, &road), "finish");
+        // Most steps steer 0: the wheel returns between taps.
+        let zero = t.actions.iter().filter(|a| a[0] == 0.0).count();
+        assert!(2 * zero > t.actions.len());
+    }
 }

@@ -24,7 +24,11 @@ fn main() -> Result<(), red_drive::Error> {
             );
         }
     }
-    let steps: Vec<usize> = results.iter().filter(|(_, e)| e.success).map(|(_, e)| e.steps).collect();
+    let steps: Vec<usize> = results
+        .iter()
+        .filter(|(_, e)| e.success)
+        .map(|(_, e)| e.steps)
+        .collect();
     println!(
         "finished {done}/{} roads (track seeds {lo}..{hi}); steps of finished runs {:?}..={:?}",
         results.len(),

@@ -214,7 +214,10 @@ impl HumanConfig {
         if !(self.cruise_max_kmh.is_finite() && self.cruise_max_kmh >= self.cruise_min_kmh) {
             return bad(
                 "cruise_max_kmh",
-                format!("must be at least cruise_min_kmh, got {}", self.cruise_max_kmh),
+                format!(
+                    "must be at least cruise_min_kmh, got {}",
+                    self.cruise_max_kmh
+                ),
             );
         }
         if self.max_taps == 0 {
@@ -420,7 +423,8 @@ impl HumanDriver {
         let v_want = slow_to.map_or(self.cruise, |s| s.min(self.cruise));
         let tol = h.speed_tolerance_kmh / 3.6;
         let speed = car.speed + self.noise(h.speed_noise_kmh) / 3.6;
-        let hold = |s: f64| pedal_on_grid((road.drag * s * s + road.rolling_resistance) / road.max_accel);
+        let hold =
+            |s: f64| pedal_on_grid((road.drag * s * s + road.rolling_resistance) / road.max_accel);
         let pedal = rec.controls()[1];
         let pedal_want = if speed > v_want + 3.0 * tol {
             -0.3
@@ -443,7 +447,8 @@ impl HumanDriver {
                 DriveKey::Down
             };
             for k in 0..n {
-                self.queue.push_back((at + k * u64::from(h.tap_gap_ticks), KeyEvent::press(key)));
+                self.queue
+                    .push_back((at + k * u64::from(h.tap_gap_ticks), KeyEvent::press(key)));
             }
         }
         let pause = self.ticks(h.glance_min, h.glance_max);
@@ -487,9 +492,8 @@ impl HumanDriver {
         // away from it.
         let first = lanes[0];
         let beside = car.x > visible[0].x - clear;
-        let allowed: [bool; NUM_LANES] = std::array::from_fn(|c| {
-            !beside || (c != first && (c < first) == (lane_now < first))
-        });
+        let allowed: [bool; NUM_LANES] =
+            std::array::from_fn(|c| !beside || (c != first && (c < first) == (lane_now < first)));
         let costs = first_lane_costs(&lanes, lane_now, allowed);
         let best = costs.iter().copied().min().unwrap_or(u64::MAX);
         let ties: Vec<usize> = (0..NUM_LANES).filter(|&c| costs[c] == best).collect();
@@ -609,10 +613,13 @@ pub fn human_episode(
         steps: rec.steps(),
     };
     let mut demos = rec.finish();
-    let t = demos.trajectories.pop().ok_or_else(|| Error::InvalidConfig {
-        field: "time_limit",
-        reason: "the episode ended before its first step".into(),
-    })?;
+    let t = demos
+        .trajectories
+        .pop()
+        .ok_or_else(|| Error::InvalidConfig {
+            field: "time_limit",
+            reason: "the episode ended before its first step".into(),
+        })?;
     Ok((t, summary))
 }
 
@@ -708,7 +715,10 @@ mod tests {
         let c = first_lane_costs(&[2, 1], 1, all);
         assert!(c[0] < c[1], "{c:?}");
         // Not allowed: impossible.
-        assert_eq!(first_lane_costs(&[1, 2], 0, [true, false, false])[2], u64::MAX);
+        assert_eq!(
+            first_lane_costs(&[1, 2], 0, [true, false, false])[2],
+            u64::MAX
+        );
     }
 
     #[test]
@@ -717,7 +727,12 @@ mod tests {
             tap_gap_ticks: 9,
             ..HumanConfig::default()
         };
-        assert!(h.validate().unwrap_err().to_string().contains("tap_gap_ticks"));
+        assert!(
+            h.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("tap_gap_ticks")
+        );
         HumanConfig::default().validate().unwrap();
     }
 }

@@ -23,7 +23,9 @@
 use red_core::{Demos, Env, EpisodeEnd, Info, TimeLimit, Trajectory};
 
 use crate::config::{ACT_DIM, CONTROL_HZ, DriveConfig, OBS_DIM};
-use crate::env::{CarState, DriveEnv, INFO_COLLISION, INFO_DISTANCE, INFO_SUCCESS, World, make_env};
+use crate::env::{
+    CarState, DriveEnv, INFO_COLLISION, INFO_DISTANCE, INFO_SUCCESS, World, make_env,
+};
 use crate::{ENV_ID, Result};
 
 /// Ticks a steering key counts as held after a press or an auto-repeat,
@@ -520,7 +522,11 @@ mod tests {
     fn pedal_stays_on_its_grid() {
         let mut r = Recorder::new(&quiet(), 0, false).unwrap();
         for k in 0..30 {
-            let key = if k % 7 < 4 { DriveKey::Down } else { DriveKey::Up };
+            let key = if k % 7 < 4 {
+                DriveKey::Down
+            } else {
+                DriveKey::Up
+            };
             r.tick(&[KeyEvent::press(key)]).unwrap();
             let p = r.controls()[1];
             assert_eq!(p, pedal_on_grid(p));
@@ -554,7 +560,10 @@ mod tests {
             assert_eq!(v.len(), rows);
             let at = v.iter().position(|l| l.contains('#')).unwrap();
             let ahead = (rows - 3 - at) as f64 * view_scale(rows).unwrap();
-            assert!((90.0..=100.0).contains(&ahead), "{rows} rows: {ahead} m: {v:#?}");
+            assert!(
+                (90.0..=100.0).contains(&ahead),
+                "{rows} rows: {ahead} m: {v:#?}"
+            );
             assert!(v[rows - 3].contains('A'), "{rows} rows");
         }
         assert!(ascii_view(&env, MIN_VIEW_ROWS - 1, 44).is_none());
@@ -580,7 +589,11 @@ mod tests {
         let mut r = Recorder::new(&c, 0, false).unwrap();
         while r.tick(&[]).unwrap() == RecordStatus::Driving {}
         assert!(r.finished() && !r.crashed());
-        assert!(r.end_line().starts_with("FINISH: 50.0 m in"), "{}", r.end_line());
+        assert!(
+            r.end_line().starts_with("FINISH: 50.0 m in"),
+            "{}",
+            r.end_line()
+        );
         let mut r = Recorder::new(&c, 0, false).unwrap();
         r.tick(&[]).unwrap();
         r.tick(&[KeyEvent::press(DriveKey::Quit)]).unwrap();

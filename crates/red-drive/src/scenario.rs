@@ -69,10 +69,9 @@ pub fn road_of(demos: &Demos) -> Result<(DriveConfig, RoadSource)> {
     let Some(value) = &demos.scenario else {
         return Ok((DriveConfig::default(), RoadSource::Assumed));
     };
-    let road: DriveConfig =
-        serde_json::from_value(value.clone()).map_err(|e| Error::Replay {
-            reason: format!("the file's `scenario` field is not a drive road: {e}"),
-        })?;
+    let road: DriveConfig = serde_json::from_value(value.clone()).map_err(|e| Error::Replay {
+        reason: format!("the file's `scenario` field is not a drive road: {e}"),
+    })?;
     road.validate().map_err(|e| Error::Replay {
         reason: format!("the file's `scenario` field is not a valid drive road: {e}"),
     })?;

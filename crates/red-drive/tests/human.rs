@@ -33,11 +33,18 @@ fn check_key_model(actions: &[Vec<f64>], start_pedal: f64) {
     let mut pedal = start_pedal;
     for (t, a) in actions.iter().enumerate() {
         assert!(
-            [-1.0, 0.0, 1.0].iter().any(|&d| next_steer(steer, d) == a[0]),
+            [-1.0, 0.0, 1.0]
+                .iter()
+                .any(|&d| next_steer(steer, d) == a[0]),
             "step {t}: steering {} does not follow {steer}",
             a[0]
         );
-        assert_eq!(a[1], pedal_on_grid(a[1]), "step {t}: pedal {} off its grid", a[1]);
+        assert_eq!(
+            a[1],
+            pedal_on_grid(a[1]),
+            "step {t}: pedal {} off its grid",
+            a[1]
+        );
         let steps = (a[1] - pedal) / PEDAL_STEP;
         assert!((steps - steps.round()).abs() < 1e-9, "step {t}");
         steer = a[0];
