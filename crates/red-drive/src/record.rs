@@ -534,7 +534,7 @@ mod tests {
         }
         // Clamped at full brake.
         let mut r = Recorder::new(&quiet(), 0, false).unwrap();
-        r.tick(&vec![KeyEvent::press(DriveKey::Down); 60]).unwrap();
+        r.tick(&[KeyEvent::press(DriveKey::Down); 60]).unwrap();
         assert_eq!(r.controls()[1], -1.0);
     }
 
