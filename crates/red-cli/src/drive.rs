@@ -426,10 +426,7 @@ fn wait_for_key() -> anyhow::Result<Option<crossterm::event::KeyEvent>> {
 /// interrupt (SIGINT, SIGTERM, SIGHUP) arrives.
 fn drive_loop(rec: &mut Recorder) -> anyhow::Result<()> {
     use crossterm::event::{self, Event};
-    draw(
-        rec,
-        "arrows: steer / accelerator; q, Esc, Ctrl-C: stop. Press an arrow to start.",
-    )?;
+    draw(rec, "arrows: steer/pedal; q, Esc: stop; an arrow starts")?;
     let mut events = Vec::new();
     loop {
         let Some(k) = wait_for_key()? else {
