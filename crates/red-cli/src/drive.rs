@@ -12,7 +12,8 @@ use red_core::Demos;
 use red_drive::record::{KeyKind, RecordStatus};
 use red_drive::render::demo_path;
 use red_drive::{
-    CONTROL_HZ, DriveConfig, DriveKey, KeyEvent, Recorder, RenderOptions, expert_demos, render_png,
+    CONTROL_HZ, DriveConfig, DriveKey, HumanConfig, KeyEvent, Recorder, RenderOptions,
+    expert_demos, render_png,
 };
 
 /// Arguments of `red-cli drive`.
@@ -31,7 +32,9 @@ pub struct DriveArgs {
 #[derive(Debug, Subcommand)]
 pub enum DriveCommand {
     /// Scripted demonstrations: an expert that knows the layout drives at
-    /// about 100 km/h around the obstacles.
+    /// about 100 km/h around the obstacles (`--style script`), or a
+    /// person-like driver presses keys through the recorder (`--style
+    /// human`).
     Expert(ExpertArgs),
     /// Drive yourself in the terminal (arrows: steer, more/less
     /// accelerator; q, Esc or Ctrl-C: stop) and save the demonstration.
@@ -68,9 +71,24 @@ pub struct ExpertArgs {
     /// Round every number to this many significant digits (smaller files).
     #[arg(long)]
     pub sig_digits: Option<usize>,
+    /// Who drives: `script`, the smooth expert that knows the whole layout,
+    /// or `human`, a script that drives like a person at the keyboard
+    /// (key taps through the recorder's key model, reaction delays, lane
+    /// wobble, only the 100 m ahead in view; `red_drive::human`).
+    #[arg(long, value_enum, default_value_t = ExpertStyle::Script)]
+    pub style: ExpertStyle,
     /// The road.
     #[command(flatten)]
     pub track: TrackArgs,
+}
+
+/// Who drives in `red-cli drive expert`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ExpertStyle {
+    /// The scripted expert ([`red_drive::Expert`]).
+    Script,
+    /// The person-like driver ([`red_drive::HumanDriver`]).
+    Human,
 }
 
 /// Arguments of `red-cli drive record`.
@@ -161,7 +179,12 @@ fn expert(args: ExpertArgs) -> anyhow::Result<()> {
     if args.episodes == 0 {
         bail!("--episodes must be at least 1");
     }
-    let mut demos = expert_demos(&config, args.episodes, args.seed)?;
+    let mut demos = match args.style {
+        ExpertStyle::Script => expert_demos(&config, args.episodes, args.seed)?,
+        ExpertStyle::Human => {
+            red_drive::human_demos(&config, &HumanConfig::default(), args.episodes, args.seed)?
+        }
+    };
     if let Some(d) = args.sig_digits {
         if d == 0 {
             bail!("--sig-digits must be at least 1");
@@ -182,8 +205,12 @@ fn expert(args: ExpertArgs) -> anyhow::Result<()> {
     demos
         .write(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
+    let who = match args.style {
+        ExpertStyle::Script => "scripted expert",
+        ExpertStyle::Human => "person-like (human-style script)",
+    };
     println!(
-        "{}: {} expert episode(s) on track seed {}",
+        "{}: {} {who} episode(s) on track seed {}",
         args.out.display(),
         demos.trajectories.len(),
         config.track_seed
@@ -192,14 +219,26 @@ fn expert(args: ExpertArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// How an episode ended, from its end and distance: "finish", "crash" or
+/// "time limit" / "stopped".
+fn ending(t: &red_core::Trajectory, distance: f64, config: &DriveConfig) -> &'static str {
+    match t.end {
+        // The reward is the distance gained, so a finished episode sums to
+        // the road's length (up to the rounding of --sig-digits).
+        red_core::EpisodeEnd::Terminated if distance >= config.road_length - 1e-3 => "finish",
+        red_core::EpisodeEnd::Terminated => "CRASH",
+        red_core::EpisodeEnd::Truncated => "time limit or stopped",
+    }
+}
+
 fn summarise(demos: &Demos, config: &DriveConfig) {
     for (i, t) in demos.trajectories.iter().enumerate() {
         let distance: f64 = t.rewards.as_ref().map_or(0.0, |r| r.iter().sum());
         println!(
-            "  episode {i}: {} steps ({:.1} s), {:?}, distance {distance:.1} m of {:.0} m ({:.1}%)",
+            "  episode {i}: {} steps ({:.1} s), {}, distance {distance:.1} m of {:.0} m ({:.1}%)",
             t.actions.len(),
             t.actions.len() as f64 / CONTROL_HZ,
-            t.end,
+            ending(t, distance, config),
             config.road_length,
             100.0 * distance / config.road_length
         );
@@ -318,51 +357,93 @@ fn to_drive_key(k: &crossterm::event::KeyEvent) -> Option<KeyEvent> {
 
 fn draw(rec: &Recorder, banner: &str) -> anyhow::Result<()> {
     use crossterm::{cursor::MoveTo, queue, style::Print, terminal};
+    use red_drive::record::{MIN_VIEW_ROWS, VIEW_AHEAD, view_scale};
     let (w, h) = terminal::size().unwrap_or((80, 24));
-    let rows = usize::from(h).saturating_sub(3).max(5);
+    let rows = usize::from(h).saturating_sub(3);
     let cols = usize::from(w).clamp(5, 45);
+    let clip = |text: &str| -> String {
+        let line = format!("{text:<w$}", w = usize::from(w));
+        line.chars().take(usize::from(w)).collect()
+    };
     let mut out = std::io::stdout();
-    for (r, line) in rec.view(rows, cols).iter().enumerate() {
-        queue!(out, MoveTo(0, r as u16), Print(line))?;
-    }
-    let status = format!("{:<w$}", rec.status_line(), w = usize::from(w));
-    let banner = format!("{banner:<w$}", w = usize::from(w));
+    let banner = match (rec.view(rows, cols), view_scale(rows)) {
+        (Some(view), Some(scale)) => {
+            for (r, line) in view.iter().enumerate() {
+                queue!(out, MoveTo(0, r as u16), Print(line))?;
+            }
+            format!("{banner}  [view: {VIEW_AHEAD:.0} m ahead, {scale:.1} m/row]")
+        }
+        _ => {
+            queue!(out, terminal::Clear(terminal::ClearType::All))?;
+            let lines = [
+                format!(
+                    "terminal too small: {h} lines; the view needs {} to show {VIEW_AHEAD:.0} m ahead.",
+                    MIN_VIEW_ROWS + 3
+                ),
+                "Make the window taller (the drive goes on meanwhile; q stops).".to_string(),
+            ];
+            for (r, line) in lines.iter().enumerate() {
+                queue!(out, MoveTo(0, r as u16), Print(clip(line)))?;
+            }
+            banner.to_string()
+        }
+    };
+    let status = rec.status_line();
+    let at = rows.max(2) as u16;
     queue!(
         out,
-        MoveTo(0, rows as u16),
-        Print(&status[..status.len().min(usize::from(w))]),
-        MoveTo(0, rows as u16 + 1),
-        Print(&banner[..banner.len().min(usize::from(w))])
+        MoveTo(0, at),
+        Print(clip(&status)),
+        MoveTo(0, at + 1),
+        Print(clip(&banner))
     )?;
     out.flush()?;
     Ok(())
 }
 
+/// Waits for a key (or an interrupt: Ctrl-C as a signal, SIGTERM, SIGHUP)
+/// and returns it, `None` after an interrupt.
+fn wait_for_key() -> anyhow::Result<Option<crossterm::event::KeyEvent>> {
+    use crossterm::event::{self, Event};
+    loop {
+        if crate::interrupt::requested() {
+            return Ok(None);
+        }
+        if event::poll(Duration::from_millis(100))?
+            && let Event::Key(k) = event::read()?
+        {
+            return Ok(Some(k));
+        }
+    }
+}
+
 /// The 20 Hz loop: gathers key events until each tick's deadline, then
-/// steps the recorder. Returns when the episode ends or the driver quits.
+/// steps the recorder. The first arrow key starts the clock and acts in
+/// the first tick. Returns when the episode ends, the driver quits or an
+/// interrupt (SIGINT, SIGTERM, SIGHUP) arrives.
 fn drive_loop(rec: &mut Recorder) -> anyhow::Result<()> {
     use crossterm::event::{self, Event};
-    draw(
-        rec,
-        "arrows: steer / accelerator; q, Esc, Ctrl-C: stop. Press an arrow to start.",
-    )?;
+    draw(rec, "arrows: steer/pedal; q, Esc: stop; an arrow starts")?;
+    let mut events = Vec::new();
     loop {
-        if let Event::Key(k) = event::read()? {
-            match to_drive_key(&k) {
-                Some(KeyEvent {
-                    key: DriveKey::Quit,
-                    ..
-                }) => return Ok(()),
-                Some(_) => break,
-                None => {}
+        let Some(k) = wait_for_key()? else {
+            return Ok(());
+        };
+        match to_drive_key(&k) {
+            Some(KeyEvent {
+                key: DriveKey::Quit,
+                ..
+            }) => return Ok(()),
+            Some(e) => {
+                events.push(e);
+                break;
             }
+            None => {}
         }
     }
     let tick = Duration::from_secs_f64(1.0 / CONTROL_HZ);
-    let mut next = Instant::now() + tick;
-    let mut events = Vec::new();
+    let mut next = Instant::now();
     loop {
-        events.clear();
         loop {
             let left = next.saturating_duration_since(Instant::now());
             if left.is_zero() || !event::poll(left)? {
@@ -374,13 +455,17 @@ fn drive_loop(rec: &mut Recorder) -> anyhow::Result<()> {
                 events.push(e);
             }
         }
+        if crate::interrupt::requested() {
+            return Ok(());
+        }
         let status = rec.tick(&events)?;
+        events.clear();
         match status {
             RecordStatus::Driving => draw(rec, "driving")?,
             RecordStatus::Quit => return Ok(()),
             RecordStatus::Ended(_) => {
-                draw(rec, "episode over: press any key")?;
-                let _ = event::read();
+                draw(rec, &format!("{}. Press any key.", rec.end_line()))?;
+                let _ = wait_for_key();
                 return Ok(());
             }
         }
@@ -397,16 +482,23 @@ fn record(args: RecordArgs) -> anyhow::Result<()> {
     let config = load_config(&args.track)?;
     let enhanced = crossterm::terminal::supports_keyboard_enhancement().unwrap_or(false);
     let mut rec = Recorder::new(&config, args.seed, enhanced)?;
+    // Ctrl-C arrives as a key in raw mode; this catches SIGTERM and SIGHUP
+    // (the terminal closing), and SIGINT before raw mode, so that they save
+    // the drive too.
+    crate::interrupt::install();
     let outcome = {
         let _terminal = Terminal::enter(enhanced)?;
         drive_loop(&mut rec)
     };
-    let status = rec.status();
+    let end = match rec.status() {
+        RecordStatus::Driving => format!("interrupted after {:.1} m", rec.distance()),
+        _ => rec.end_line(),
+    };
     let demos = rec.finish();
     let saved = save(&demos, &args.out);
     outcome?;
     saved?;
-    println!("{} ({status:?})", args.out.display());
+    println!("{}: {end}", args.out.display());
     summarise(&demos, &config);
     Ok(())
 }
@@ -446,6 +538,7 @@ mod tests {
             episodes: 2,
             seed: 1,
             sig_digits: Some(6),
+            style: ExpertStyle::Script,
             track: track(),
         })
         .unwrap();
@@ -485,5 +578,35 @@ mod tests {
         });
         let _ = std::fs::remove_dir_all(&dir);
         assert!(format!("{:#}", err.unwrap_err()).contains("track"));
+    }
+
+    #[test]
+    fn human_style_writes_a_script_demo_that_carries_its_road() {
+        let dir = tempfile::tempdir().unwrap();
+        let demo = dir.path().join("human.json");
+        expert(ExpertArgs {
+            out: demo.clone(),
+            episodes: 1,
+            seed: 0,
+            sig_digits: Some(6),
+            style: ExpertStyle::Human,
+            track: TrackArgs {
+                config: None,
+                track_seed: Some(11),
+            },
+        })
+        .unwrap();
+        let demos = Demos::read(&demo).unwrap();
+        assert_eq!(demos.source, Some(red_core::DemoSource::Script));
+        let (road, source) = red_drive::scenario::road_of(&demos).unwrap();
+        assert_eq!(source, red_drive::scenario::RoadSource::File);
+        assert_eq!(road.track_seed, 11);
+        red_drive::scenario::check_fits(&road, &demos).unwrap();
+        let t = &demos.trajectories[0];
+        let distance: f64 = t.rewards.as_ref().unwrap().iter().sum();
+        assert_eq!(ending(t, distance, &road), "finish");
+        // Most steps steer 0: the wheel returns between taps.
+        let zero = t.actions.iter().filter(|a| a[0] == 0.0).count();
+        assert!(2 * zero > t.actions.len());
     }
 }

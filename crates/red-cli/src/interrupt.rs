@@ -1,6 +1,8 @@
 //! Ctrl-C for long commands: the first press asks the running command to
 //! save a checkpoint and stop at its next safe point; a second press exits
-//! at once (status 130), losing at most one checkpoint interval.
+//! at once (status 130), losing at most one checkpoint interval. SIGTERM
+//! and SIGHUP (the terminal closing) count as Ctrl-C (`ctrlc`'s
+//! `termination` feature).
 
 use std::sync::Once;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -16,7 +18,7 @@ pub fn install() {
                 eprintln!("\nsecond interrupt: exiting without saving");
                 std::process::exit(130);
             }
-            eprintln!("\ninterrupt: saving a checkpoint and stopping (press Ctrl-C again to quit now)");
+            eprintln!("\ninterrupt: saving and stopping (press Ctrl-C again to quit now)");
         });
         if let Err(e) = result {
             eprintln!("warning: cannot catch Ctrl-C ({e}); an interrupt will lose the work since the last checkpoint");

@@ -4,15 +4,28 @@
 //!
 //! Controls: Left/Right steer (the wheel turns further each tick a key is
 //! held and returns to the centre when none is), Up/Down raise/lower a
-//! latched accelerator/brake level by 0.1 per key event (about 0.15 holds
-//! 100 km/h; negative values brake), Quit ends the recording. Terminals that
+//! latched accelerator/brake level by [`PEDAL_STEP`] (0.05) per key event
+//! (negative values brake), Quit ends the recording. The level starts at
+//! the grid point nearest the one that holds the start speed: 0.15 on the
+//! default road, which holds 99.85 km/h (measured: 99.86 km/h after 60 s
+//! without a key from 100 km/h, `pedal_grid_holds_100_kmh`). Its neighbours hold 77 km/h
+//! (0.10) and 118 km/h (0.20); with the former step of 0.1 the levels 0.1
+//! and 0.2 were the choice and neither held 100 km/h. Terminals that
 //! report key releases hold a steering key until it is released; others
 //! treat each press or auto-repeat as holding it for [`HOLD_TICKS`] ticks.
+//!
+//! The view ([`ascii_view`]) always shows [`VIEW_AHEAD`] metres of road
+//! ahead of the car, whatever the terminal's height: the metres per row
+//! follow the rows available, and a terminal with fewer than
+//! [`MIN_VIEW_ROWS`] rows for the view gets no view (the front end says
+//! why) rather than a shorter one.
 
 use red_core::{Demos, Env, EpisodeEnd, Info, TimeLimit, Trajectory};
 
 use crate::config::{ACT_DIM, CONTROL_HZ, DriveConfig, OBS_DIM};
-use crate::env::{CarState, DriveEnv, INFO_DISTANCE, make_env};
+use crate::env::{
+    CarState, DriveEnv, INFO_COLLISION, INFO_DISTANCE, INFO_SUCCESS, World, make_env,
+};
 use crate::{ENV_ID, Result};
 
 /// Ticks a steering key counts as held after a press or an auto-repeat,
@@ -24,8 +37,50 @@ pub const STEER_RATE: f64 = 0.2;
 /// Change of the steering per tick back towards the centre when no
 /// steering key is held.
 pub const STEER_RETURN: f64 = 0.3;
-/// Change of the accelerator/brake level per Up/Down key event.
-pub const PEDAL_STEP: f64 = 0.1;
+/// Change of the accelerator/brake level per Up/Down key event. 0.05 puts
+/// a level on the one that holds 100 km/h on the default road (0.15, see
+/// the module docs); 0.1 did not (0.1 holds 77 km/h, 0.2 118 km/h).
+pub const PEDAL_STEP: f64 = 0.05;
+/// Metres of road the view shows ahead of the car, whatever the size of
+/// the terminal: the lidar's range, so a person sees what the observation
+/// holds (an 80 x 24 terminal used to show 45 m, less than the distance to
+/// the first stopped car on some roads).
+pub const VIEW_AHEAD: f64 = 100.0;
+/// Fewest rows of road the view needs: with fewer, a row would stand for
+/// more than [`MAX_METRES_PER_ROW`] and a stopped car would be a dot.
+pub const MIN_VIEW_ROWS: usize = 16;
+/// Coarsest scale of the view (metres of road per row) that
+/// [`MIN_VIEW_ROWS`] allows: [`VIEW_AHEAD`] over the 13 rows above the car.
+pub const MAX_METRES_PER_ROW: f64 = VIEW_AHEAD / (MIN_VIEW_ROWS - VIEW_ROWS_BEHIND) as f64;
+/// Rows of the view at and behind the car's row.
+const VIEW_ROWS_BEHIND: usize = 3;
+
+/// The steering after one tick: `dir` is +1 while Left is held, -1 while
+/// Right is, 0 when neither (or both) is. Held, it moves by [`STEER_RATE`]
+/// up to the stop at 1; released, it returns by [`STEER_RETURN`] towards
+/// the centre and stops there.
+pub fn next_steer(steer: f64, dir: f64) -> f64 {
+    if dir != 0.0 {
+        (steer + STEER_RATE * dir).clamp(-1.0, 1.0)
+    } else if steer.abs() <= STEER_RETURN {
+        0.0
+    } else {
+        steer - STEER_RETURN * steer.signum()
+    }
+}
+
+/// The accelerator/brake level on the key grid nearest `pedal`, in
+/// `[-1, 1]`: what the recorder stores.
+pub fn pedal_on_grid(pedal: f64) -> f64 {
+    (pedal.clamp(-1.0, 1.0) / PEDAL_STEP).round() * PEDAL_STEP
+}
+
+/// Metres of road per row for a view `rows` rows high that shows
+/// [`VIEW_AHEAD`] metres ahead, or `None` when `rows` is below
+/// [`MIN_VIEW_ROWS`].
+pub fn view_scale(rows: usize) -> Option<f64> {
+    (rows >= MIN_VIEW_ROWS).then(|| VIEW_AHEAD / (rows - VIEW_ROWS_BEHIND) as f64)
+}
 
 /// A key the driver uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -118,7 +173,7 @@ impl Recorder {
             obs,
             info,
             steer: 0.0,
-            pedal: (hold / PEDAL_STEP).round() * PEDAL_STEP,
+            pedal: pedal_on_grid(hold),
             key_releases,
             hold_left: 0,
             hold_right: 0,
@@ -156,27 +211,19 @@ impl Recorder {
                 (DriveKey::Left, _) => self.hold_left = held,
                 (DriveKey::Right, _) => self.hold_right = held,
                 (DriveKey::Up | DriveKey::Down, KeyKind::Release) => {}
-                (DriveKey::Up, _) => self.pedal = (self.pedal + PEDAL_STEP).min(1.0),
-                (DriveKey::Down, _) => self.pedal = (self.pedal - PEDAL_STEP).max(-1.0),
+                (DriveKey::Up, _) => self.pedal = pedal_on_grid(self.pedal + PEDAL_STEP),
+                (DriveKey::Down, _) => self.pedal = pedal_on_grid(self.pedal - PEDAL_STEP),
             }
         }
         let dir =
             f64::from(u8::from(self.hold_left > 0)) - f64::from(u8::from(self.hold_right > 0));
-        if dir != 0.0 {
-            self.steer = (self.steer + STEER_RATE * dir).clamp(-1.0, 1.0);
-        } else if self.steer.abs() <= STEER_RETURN {
-            self.steer = 0.0;
-        } else {
-            self.steer -= STEER_RETURN * self.steer.signum();
-        }
+        self.steer = next_steer(self.steer, dir);
         if self.hold_left != u32::MAX {
             self.hold_left = self.hold_left.saturating_sub(1);
         }
         if self.hold_right != u32::MAX {
             self.hold_right = self.hold_right.saturating_sub(1);
         }
-        // Round to the key steps so stored actions are exact multiples.
-        self.pedal = (self.pedal / PEDAL_STEP).round() * PEDAL_STEP;
         let action = [self.steer, self.pedal];
         let step = self.env.step(&action)?;
         self.observations
@@ -212,13 +259,33 @@ impl Recorder {
         [self.steer, self.pedal]
     }
 
+    /// The static world (settings and layout) the car drives in.
+    pub fn world(&self) -> &World {
+        self.env.inner().world()
+    }
+
+    /// Distance driven along the road so far, metres.
+    pub fn distance(&self) -> f64 {
+        self.info.get(INFO_DISTANCE).unwrap_or(0.0)
+    }
+
+    /// Whether the last step hit an obstacle or a wall.
+    pub fn crashed(&self) -> bool {
+        self.info.get(INFO_COLLISION) == Some(1.0)
+    }
+
+    /// Whether the last step reached the end of the road.
+    pub fn finished(&self) -> bool {
+        self.info.get(INFO_SUCCESS) == Some(1.0)
+    }
+
     /// One line about speed, distance and controls.
     pub fn status_line(&self) -> String {
         let car = self.car();
         format!(
-            "{:5.1} km/h  {:6.1} / {:.0} m  steer {:+.1}  pedal {:+.1}  {:5.1} s",
+            "{:5.1} km/h  {:6.1} / {:.0} m  steer {:+.1}  pedal {:+.2}  {:5.1} s",
             car.speed * 3.6,
-            self.info.get(INFO_DISTANCE).unwrap_or(0.0),
+            self.distance(),
             self.env.inner().config().road_length,
             self.steer,
             self.pedal,
@@ -226,12 +293,33 @@ impl Recorder {
         )
     }
 
+    /// How the recording ended, for the end screen: a crash, the finish,
+    /// the time limit or the driver stopping, with the distance driven
+    /// and the time ("driving" while it goes on).
+    pub fn end_line(&self) -> String {
+        let d = self.distance();
+        let t = self.steps() as f64 / CONTROL_HZ;
+        match self.status {
+            RecordStatus::Driving => "driving".into(),
+            RecordStatus::Quit => format!("stopped by the driver after {d:.1} m ({t:.1} s)"),
+            RecordStatus::Ended(EpisodeEnd::Truncated) => {
+                format!("time limit: {d:.1} m in {t:.1} s")
+            }
+            RecordStatus::Ended(EpisodeEnd::Terminated) if self.finished() => format!(
+                "FINISH: {d:.1} m in {t:.1} s ({:.1} km/h on average)",
+                3.6 * d / t.max(1e-9)
+            ),
+            RecordStatus::Ended(EpisodeEnd::Terminated) => {
+                format!("CRASH after {d:.1} m ({t:.1} s)")
+            }
+        }
+    }
+
     /// A top-down view of the road around the car, `rows` lines of `cols`
-    /// characters (at least 5 x 5): the road's far end at the top, the car
-    /// (`A`) near the bottom, walls `|`, lane lines `:`, stopped cars `#`,
-    /// the finish line `=`. Each row is 2.5 m of road.
-    pub fn view(&self, rows: usize, cols: usize) -> Vec<String> {
-        ascii_view(self.env.inner(), rows.max(5), cols.max(5))
+    /// characters (see [`ascii_view`]), or `None` when `rows` is below
+    /// [`MIN_VIEW_ROWS`].
+    pub fn view(&self, rows: usize, cols: usize) -> Option<Vec<String>> {
+        ascii_view(self.env.inner(), rows, cols)
     }
 
     /// The demonstration recorded so far: one trajectory (none if no step
@@ -259,20 +347,24 @@ impl Recorder {
     }
 }
 
-/// Metres of road per row of [`ascii_view`].
-const METRES_PER_ROW: f64 = 2.5;
-
-/// See [`Recorder::view`].
-pub fn ascii_view(env: &DriveEnv, rows: usize, cols: usize) -> Vec<String> {
+/// A top-down view of the road around the car, `rows` lines of `cols`
+/// characters (`cols` at least 5): the road ahead at the top, the car
+/// (`A`) on the third row from the bottom, walls `|`, lane lines `:`,
+/// stopped cars `#`, the finish line `=`. The rows above the car cover
+/// [`VIEW_AHEAD`] metres whatever `rows` is ([`view_scale`]); `None` when
+/// `rows` is below [`MIN_VIEW_ROWS`].
+pub fn ascii_view(env: &DriveEnv, rows: usize, cols: usize) -> Option<Vec<String>> {
+    let metres_per_row = view_scale(rows)?;
+    let cols = cols.max(5);
     let c = env.config();
     let car = env.car();
     let hw = c.half_width();
     let inner = cols - 2;
     let col_w = 2.0 * hw / inner as f64;
-    let car_row = rows - 3;
+    let car_row = rows - VIEW_ROWS_BEHIND;
     let near = env.track().between(
-        car.x - 10.0 * c.car_length,
-        car.x + rows as f64 * METRES_PER_ROW + c.car_length,
+        car.x - VIEW_ROWS_BEHIND as f64 * metres_per_row - c.car_length,
+        car.x + VIEW_AHEAD + metres_per_row + c.car_length,
     );
     let (s, co) = car.heading.sin_cos();
     // The column nearest to each line between two lanes.
@@ -286,27 +378,27 @@ pub fn ascii_view(env: &DriveEnv, rows: usize, cols: usize) -> Vec<String> {
         .collect();
     let mut out = Vec::with_capacity(rows);
     for r in 0..rows {
-        let x = car.x + (car_row as f64 - r as f64) * METRES_PER_ROW;
+        let x = car.x + (car_row as f64 - r as f64) * metres_per_row;
         let mut line = String::with_capacity(cols);
         line.push('|');
         for k in 0..inner {
             let y = hw - (k as f64 + 0.5) * col_w;
             let in_box = |cx: f64, cy: f64| {
-                (x - cx).abs() <= 0.5 * (c.car_length + METRES_PER_ROW)
+                (x - cx).abs() <= 0.5 * (c.car_length + metres_per_row)
                     && (y - cy).abs() <= 0.5 * (c.car_width + col_w)
             };
             // The car's body in its own frame.
             let (dx, dy) = (x - car.x, y - car.y);
             let (lx, ly) = (co * dx + s * dy, -s * dx + co * dy);
-            let ch = if lx.abs() <= 0.5 * (c.car_length + METRES_PER_ROW)
+            let ch = if lx.abs() <= 0.5 * (c.car_length + metres_per_row)
                 && ly.abs() <= 0.5 * (c.car_width + col_w)
             {
                 'A'
             } else if near.iter().any(|o| in_box(o.x, o.y)) {
                 '#'
-            } else if x >= c.road_length && x < c.road_length + METRES_PER_ROW {
+            } else if x >= c.road_length && x < c.road_length + metres_per_row {
                 '='
-            } else if line_cols.contains(&k) && (x / METRES_PER_ROW).floor() as i64 % 2 == 0 {
+            } else if line_cols.contains(&k) && (x / metres_per_row).floor() as i64 % 2 == 0 {
                 ':'
             } else {
                 ' '
@@ -316,7 +408,7 @@ pub fn ascii_view(env: &DriveEnv, rows: usize, cols: usize) -> Vec<String> {
         line.push('|');
         out.push(line);
     }
-    out
+    Some(out)
 }
 
 #[cfg(test)]
@@ -384,12 +476,127 @@ mod tests {
             speed: 20.0,
         })
         .unwrap();
-        let v = ascii_view(&env, 30, 44);
+        let v = ascii_view(&env, 30, 44).unwrap();
         assert_eq!(v.len(), 30);
         assert!(v.iter().all(|l| l.chars().count() == 44));
         assert!(v.iter().all(|l| l.starts_with('|') && l.ends_with('|')));
         assert!(v[27].contains('A'));
         assert!(v.iter().any(|l| l.contains('#')));
         assert!(v.iter().any(|l| l.contains(':')));
+    }
+
+    /// A straight empty road: nothing to hit for a long time.
+    fn empty_road() -> DriveConfig {
+        DriveConfig {
+            road_length: 20_000.0,
+            first_obstacle_distance: 30_000.0,
+            time_limit: 6000,
+            ..quiet()
+        }
+    }
+
+    #[test]
+    fn pedal_grid_holds_100_kmh() {
+        let mut r = Recorder::new(&empty_road(), 0, false).unwrap();
+        assert!((r.controls()[1] - 0.15).abs() < 1e-12, "{:?}", r.controls());
+        for _ in 0..1200 {
+            r.tick(&[]).unwrap();
+        }
+        let kmh = r.car().speed * 3.6;
+        assert!((kmh - 100.0).abs() < 0.5, "{kmh} km/h after 60 s");
+        // The measured value the docs quote.
+        assert!((kmh - 99.86).abs() < 0.01, "{kmh}");
+        // One step either way: 77 and 118 km/h.
+        for (key, want) in [(DriveKey::Down, 77.3), (DriveKey::Up, 118.1)] {
+            let mut r = Recorder::new(&empty_road(), 0, false).unwrap();
+            r.tick(&[KeyEvent::press(key)]).unwrap();
+            for _ in 0..5000 {
+                r.tick(&[]).unwrap();
+            }
+            let kmh = r.car().speed * 3.6;
+            assert!((kmh - want).abs() < 1.0, "{key:?}: {kmh} km/h");
+        }
+    }
+
+    #[test]
+    fn pedal_stays_on_its_grid() {
+        let mut r = Recorder::new(&quiet(), 0, false).unwrap();
+        for k in 0..30 {
+            let key = if k % 7 < 4 {
+                DriveKey::Down
+            } else {
+                DriveKey::Up
+            };
+            r.tick(&[KeyEvent::press(key)]).unwrap();
+            let p = r.controls()[1];
+            assert_eq!(p, pedal_on_grid(p));
+            assert!(((p / PEDAL_STEP).round() * PEDAL_STEP - p).abs() == 0.0);
+        }
+        // Clamped at full brake.
+        let mut r = Recorder::new(&quiet(), 0, false).unwrap();
+        r.tick(&[KeyEvent::press(DriveKey::Down); 60]).unwrap();
+        assert_eq!(r.controls()[1], -1.0);
+    }
+
+    #[test]
+    fn view_shows_100_m_ahead_at_any_height() {
+        assert_eq!(view_scale(MIN_VIEW_ROWS - 1), None);
+        assert_eq!(view_scale(MIN_VIEW_ROWS), Some(MAX_METRES_PER_ROW));
+        let c = quiet();
+        let mut env = DriveEnv::new(&c).unwrap();
+        env.reset(Some(0)).unwrap();
+        let first = env.track().obstacles[0];
+        // The stopped car 95 m ahead, in the middle of the lane to the left.
+        env.reset_to(CarState {
+            x: first.x - 95.0,
+            y: 0.0,
+            heading: 0.0,
+            speed: 20.0,
+        })
+        .unwrap();
+        // 21 rows: an 80 x 24 terminal less its status lines.
+        for rows in [MIN_VIEW_ROWS, 21, 40, 90] {
+            let v = ascii_view(&env, rows, 44).unwrap();
+            assert_eq!(v.len(), rows);
+            let at = v.iter().position(|l| l.contains('#')).unwrap();
+            let ahead = (rows - 3 - at) as f64 * view_scale(rows).unwrap();
+            assert!(
+                (90.0..=100.0).contains(&ahead),
+                "{rows} rows: {ahead} m: {v:#?}"
+            );
+            assert!(v[rows - 3].contains('A'), "{rows} rows");
+        }
+        assert!(ascii_view(&env, MIN_VIEW_ROWS - 1, 44).is_none());
+    }
+
+    #[test]
+    fn end_line_tells_a_crash_from_a_finish() {
+        // Left held: into the wall.
+        let mut r = Recorder::new(&quiet(), 0, true).unwrap();
+        assert_eq!(r.end_line(), "driving");
+        let mut status = r.tick(&[KeyEvent::press(DriveKey::Left)]).unwrap();
+        while status == RecordStatus::Driving {
+            status = r.tick(&[]).unwrap();
+        }
+        assert!(r.crashed() && !r.finished());
+        assert!(r.end_line().starts_with("CRASH after"), "{}", r.end_line());
+        // A short road with nothing on it: the finish.
+        let c = DriveConfig {
+            road_length: 50.0,
+            first_obstacle_distance: 100.0,
+            ..quiet()
+        };
+        let mut r = Recorder::new(&c, 0, false).unwrap();
+        while r.tick(&[]).unwrap() == RecordStatus::Driving {}
+        assert!(r.finished() && !r.crashed());
+        assert!(
+            r.end_line().starts_with("FINISH: 50.0 m in"),
+            "{}",
+            r.end_line()
+        );
+        let mut r = Recorder::new(&c, 0, false).unwrap();
+        r.tick(&[]).unwrap();
+        r.tick(&[KeyEvent::press(DriveKey::Quit)]).unwrap();
+        assert!(r.end_line().starts_with("stopped by the driver"));
     }
 }

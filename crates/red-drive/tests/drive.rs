@@ -302,7 +302,7 @@ fn recorder_round_trip_through_a_demo_file() {
         RecordStatus::Quit
     );
     assert_eq!(rec.steps(), 60);
-    assert!(!rec.view(20, 30).is_empty());
+    assert!(rec.view(20, 30).is_some_and(|v| v.len() == 20));
     let demos = rec.finish();
     let t = &demos.trajectories[0];
     assert_eq!(t.end, EpisodeEnd::Truncated);
