@@ -7,6 +7,8 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
+
+use crate::road::{TrackArgs, load_config};
 use clap::{Args, CommandFactory, Subcommand};
 use red_core::Demos;
 use red_drive::record::{KeyKind, RecordStatus};
@@ -42,18 +44,6 @@ pub enum DriveCommand {
     /// Draw a demonstration file's paths (and lidar rays) on its road as a
     /// PNG.
     Render(RenderArgs),
-}
-
-/// The road: settings file and layout seed.
-#[derive(Debug, Args)]
-pub struct TrackArgs {
-    /// Settings of the scenario (JSON of `DriveConfig`; missing fields take
-    /// their defaults).
-    #[arg(long)]
-    pub config: Option<PathBuf>,
-    /// Seed of the road's layout (overrides the config's `track_seed`).
-    #[arg(long)]
-    pub track_seed: Option<u64>,
 }
 
 /// Arguments of `red-cli drive expert`.
@@ -148,23 +138,6 @@ pub fn run(args: DriveArgs) -> anyhow::Result<()> {
     }
 }
 
-pub(crate) fn load_config(track: &TrackArgs) -> anyhow::Result<DriveConfig> {
-    let mut config = match &track.config {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?;
-            serde_json::from_str(&text)
-                .with_context(|| format!("parsing the drive config {}", path.display()))?
-        }
-        None => DriveConfig::default(),
-    };
-    if let Some(s) = track.track_seed {
-        config.track_seed = s;
-    }
-    config.validate()?;
-    Ok(config)
-}
-
 fn round_sig(v: f64, digits: usize) -> f64 {
     if v == 0.0 || !v.is_finite() {
         return v;
@@ -246,11 +219,7 @@ fn summarise(demos: &Demos, config: &DriveConfig) {
 }
 
 fn render(args: RenderArgs) -> anyhow::Result<()> {
-    let requested = if args.track.config.is_some() || args.track.track_seed.is_some() {
-        Some(load_config(&args.track)?)
-    } else {
-        None
-    };
+    let requested = args.track.requested()?;
     let (demos, config, note) = red_experiments::drive::load_demo(&args.demo, requested, false)?;
     if let Some(n) = note {
         eprintln!("note: {n}");

@@ -8,9 +8,9 @@ use anyhow::Context;
 use clap::Args;
 use red_experiments::drive::{self, DriveOutcome, DriveRunConfig, DriveTrainConfig};
 
-use crate::drive::{TrackArgs, load_config};
 use crate::interrupt;
 use crate::progress::Bar;
+use crate::road::TrackArgs;
 
 /// Arguments of `red-cli drive --demo FILE` (training and evaluation).
 #[derive(Debug, Args)]
@@ -82,11 +82,7 @@ pub struct TrainArgs {
 /// The run's settings from the command line, and the demonstration.
 fn run_config(args: &TrainArgs) -> anyhow::Result<(DriveRunConfig, red_core::Demos)> {
     let demo = args.demo.clone().context("--demo is required")?;
-    let requested = if args.track.config.is_some() || args.track.track_seed.is_some() {
-        Some(load_config(&args.track)?)
-    } else {
-        None
-    };
+    let requested = args.track.requested()?;
     let (demos, road, note) = drive::load_demo(&demo, requested, args.other_road)?;
     if let Some(n) = note {
         eprintln!("note: {n}");

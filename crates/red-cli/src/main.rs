@@ -43,6 +43,7 @@ mod mujoco;
 mod mujoco_run;
 mod mujoco_table;
 mod progress;
+mod road;
 mod support;
 mod toy;
 

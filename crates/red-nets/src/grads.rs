@@ -4,7 +4,6 @@ use ndarray::{Array1, Array2};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::mlp::Mlp;
 
 /// One layer's part of a [`Gradients`]: `dw` has the layer's weight shape
 /// `(in, out)`, `db` its bias shape `(out,)`.
@@ -16,12 +15,12 @@ pub struct LayerGrad {
     pub db: Array1<f32>,
 }
 
-/// A vector in parameter space with the layout of an [`Mlp`]: gradients
-/// accumulated by [`Mlp::backward`], directions for [`Mlp::jvp`], optimiser
+/// A vector in parameter space with the layout of an [`crate::Mlp`]: gradients
+/// accumulated by [`crate::Mlp::backward`], directions for [`crate::Mlp::jvp`], optimiser
 /// moments.
 ///
 /// The flat layout ([`Gradients::flat`]) is the same as
-/// [`Mlp::params_flat`]: layer by layer, the weights in row-major `(in, out)`
+/// [`crate::Mlp::params_flat`]: layer by layer, the weights in row-major `(in, out)`
 /// order, then the biases.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Gradients {
@@ -29,46 +28,11 @@ pub struct Gradients {
 }
 
 impl Gradients {
-    /// Zeros with the layout of `net`.
-    pub fn zeros(net: &Mlp) -> Gradients {
-        Gradients {
-            layers: net
-                .layers()
-                .iter()
-                .map(|l| LayerGrad {
-                    dw: Array2::zeros(l.w.raw_dim()),
-                    db: Array1::zeros(l.b.raw_dim()),
-                })
-                .collect(),
-        }
-    }
-
-    /// A vector with the layout of `net` from a flat slice in the order of
-    /// [`Mlp::params_flat`].
-    ///
-    /// # Errors
-    /// [`Error::ShapeMismatch`] when `flat.len() != net.num_params()`.
-    pub fn from_flat(net: &Mlp, flat: &[f32]) -> Result<Gradients> {
-        if flat.len() != net.num_params() {
-            return Err(Error::shape(
-                "Gradients::from_flat",
-                net.num_params(),
-                flat.len(),
-            ));
-        }
-        let mut g = Gradients::zeros(net);
-        let mut k = 0;
-        for l in &mut g.layers {
-            for (d, s) in l.dw.iter_mut().zip(&flat[k..]) {
-                *d = *s;
-            }
-            k += l.dw.len();
-            for (d, s) in l.db.iter_mut().zip(&flat[k..]) {
-                *d = *s;
-            }
-            k += l.db.len();
-        }
-        Ok(g)
+    /// A vector made of these per-layer parts (the layout of a net is
+    /// given by the constructors in `mlp.rs`: [`Gradients::zeros`],
+    /// [`Gradients::from_flat`]).
+    pub(crate) fn from_layers(layers: Vec<LayerGrad>) -> Gradients {
+        Gradients { layers }
     }
 
     /// The per-layer parts, input layer first.
@@ -82,7 +46,7 @@ impl Gradients {
         &mut self.layers
     }
 
-    /// Total number of entries (equals [`Mlp::num_params`] of the net it came from).
+    /// Total number of entries (equals [`crate::Mlp::num_params`] of the net it came from).
     pub fn len(&self) -> usize {
         self.layers.iter().map(|l| l.dw.len() + l.db.len()).sum()
     }
@@ -90,16 +54,6 @@ impl Gradients {
     /// Whether there are no entries at all.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
-    }
-
-    /// Whether `self` has the layout of `net`.
-    pub fn matches(&self, net: &Mlp) -> bool {
-        self.layers.len() == net.layers().len()
-            && self
-                .layers
-                .iter()
-                .zip(net.layers())
-                .all(|(g, l)| g.dw.dim() == l.w.dim() && g.db.dim() == l.b.dim())
     }
 
     fn same_layout(&self, other: &Gradients) -> bool {
@@ -111,7 +65,7 @@ impl Gradients {
                 .all(|(a, b)| a.dw.dim() == b.dw.dim() && a.db.dim() == b.db.dim())
     }
 
-    /// All entries in the flat order of [`Mlp::params_flat`].
+    /// All entries in the flat order of [`crate::Mlp::params_flat`].
     pub fn flat(&self) -> Vec<f32> {
         let mut v = Vec::with_capacity(self.len());
         for l in &self.layers {
@@ -219,6 +173,7 @@ pub fn clip_grad_norm(grads: &mut Gradients, max_norm: f32) -> f32 {
 mod tests {
     use super::*;
     use crate::config::MlpConfig;
+    use crate::mlp::Mlp;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 

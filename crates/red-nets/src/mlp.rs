@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::activation::Activation;
 use crate::config::MlpConfig;
 use crate::error::{Error, Result};
-use crate::grads::Gradients;
+use crate::grads::{Gradients, LayerGrad};
 use crate::init::init_weights;
 
 /// Name written into saved networks.
@@ -688,6 +688,61 @@ impl TryFrom<MlpRepr> for Mlp {
             config: r.config,
             layers,
         })
+    }
+}
+
+/// The constructors of [`Gradients`] that take their layout from a net
+/// (here, so that `grads.rs` does not depend on `mlp.rs`).
+impl Gradients {
+    /// Zeros with the layout of `net`.
+    pub fn zeros(net: &Mlp) -> Gradients {
+        Gradients::from_layers(
+            net.layers()
+                .iter()
+                .map(|l| LayerGrad {
+                    dw: Array2::zeros(l.w.raw_dim()),
+                    db: Array1::zeros(l.b.raw_dim()),
+                })
+                .collect(),
+        )
+    }
+
+    /// A vector with the layout of `net` from a flat slice in the order of
+    /// [`Mlp::params_flat`].
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] when `flat.len() != net.num_params()`.
+    pub fn from_flat(net: &Mlp, flat: &[f32]) -> Result<Gradients> {
+        if flat.len() != net.num_params() {
+            return Err(Error::shape(
+                "Gradients::from_flat",
+                net.num_params(),
+                flat.len(),
+            ));
+        }
+        let mut g = Gradients::zeros(net);
+        let mut k = 0;
+        for l in g.layers_mut() {
+            for (d, s) in l.dw.iter_mut().zip(&flat[k..]) {
+                *d = *s;
+            }
+            k += l.dw.len();
+            for (d, s) in l.db.iter_mut().zip(&flat[k..]) {
+                *d = *s;
+            }
+            k += l.db.len();
+        }
+        Ok(g)
+    }
+
+    /// Whether `self` has the layout of `net`.
+    pub fn matches(&self, net: &Mlp) -> bool {
+        self.layers().len() == net.layers().len()
+            && self
+                .layers()
+                .iter()
+                .zip(net.layers())
+                .all(|(g, l)| g.dw.dim() == l.w.dim() && g.db.dim() == l.b.dim())
     }
 }
 
