@@ -278,6 +278,8 @@ pub struct DriveEnv {
     action_space: Space,
     in_episode: bool,
     scratch: Vec<f64>,
+    /// `(first, count)` of [`DriveEnv::set_road_pool`].
+    road_pool: Option<(u64, u64)>,
 }
 
 /// The default scenario wrapped in its time limit (`config.time_limit`).
@@ -326,7 +328,16 @@ impl DriveEnv {
             action_space: Space::Box(BoxSpace::uniform(ACT_DIM, -1.0, 1.0)),
             in_episode: false,
             scratch: Vec::with_capacity(OBS_DIM),
+            road_pool: None,
         })
+    }
+
+    /// Makes every [`Env::reset`] with a seed drive on one of `count` roads:
+    /// the road of track seed `first + seed % count` (other settings as
+    /// this env's), so training can see many roads while evaluation keeps
+    /// its own. `count = 0` turns it off (one road, as built).
+    pub fn set_road_pool(&mut self, first: u64, count: u64) {
+        self.road_pool = (count > 0).then_some((first, count));
     }
 
     /// The static world (settings, layout, shapes).
@@ -412,6 +423,16 @@ impl Env for DriveEnv {
     fn reset(&mut self, seed: Option<u64>) -> red_core::Result<(Vec<f64>, Info)> {
         if let Some(s) = seed {
             self.rng = ChaCha8Rng::seed_from_u64(s);
+            if let Some((first, count)) = self.road_pool {
+                let track_seed = first.wrapping_add(s % count);
+                if track_seed != self.world.config.track_seed {
+                    let config = DriveConfig {
+                        track_seed,
+                        ..self.world.config.clone()
+                    };
+                    self.world = World::new(&config)?;
+                }
+            }
         }
         let c = self.world.config.clone();
         let mut noise = |scale: f64| {
@@ -475,6 +496,27 @@ impl Env for DriveEnv {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_road_pool_draws_the_road_from_the_reset_seed() {
+        let mut env = DriveEnv::new(&DriveConfig::default()).unwrap();
+        env.set_road_pool(500, 3);
+        env.reset(Some(4)).unwrap();
+        assert_eq!(env.config().track_seed, 501);
+        let layout = env.track().obstacles.clone();
+        env.reset(Some(2)).unwrap();
+        assert_eq!(env.config().track_seed, 502);
+        assert_ne!(env.track().obstacles, layout);
+        env.reset(Some(7)).unwrap();
+        assert_eq!(env.config().track_seed, 501);
+        assert_eq!(env.track().obstacles, layout);
+        // Without a seed the road stays; with the pool off, it never moves.
+        env.reset(None).unwrap();
+        assert_eq!(env.config().track_seed, 501);
+        env.set_road_pool(0, 0);
+        env.reset(Some(2)).unwrap();
+        assert_eq!(env.config().track_seed, 501);
+    }
 
     #[test]
     fn wrap_angle_stays_in_range() {

@@ -59,6 +59,8 @@ pub const SELECT_SEED: u64 = 2_000;
 /// Track seeds of the unseen roads start here (the demo's own track seed
 /// is skipped).
 pub const UNSEEN_FIRST_TRACK_SEED: u64 = 100;
+/// Track seeds of the training roads (`train_roads`) start here.
+pub const TRAIN_FIRST_TRACK_SEED: u64 = 10_000;
 
 /// How RED's and AE's `σ1` is set: the `quantile` of held-out expert scores
 /// (`folds`-fold cross-fitting) gets reward `reward`.
@@ -132,6 +134,14 @@ pub struct DriveTrainConfig {
     /// Environment steps between checkpoints (0: only on a stop and
     /// between methods).
     pub checkpoint_every: u64,
+    /// Roads of the training episodes: 0 trains on the demonstration's
+    /// road only (the paper's setting); `N > 0` drives each training
+    /// episode on one of `N` other roads (track seeds from
+    /// [`TRAIN_FIRST_TRACK_SEED`], never the evaluation's), drawn by the
+    /// episode's reset seed. RED's reward needs only state-action pairs,
+    /// so it applies on any road. Selection checks stay on the demo's
+    /// road.
+    pub train_roads: u64,
 }
 
 impl Default for DriveTrainConfig {
@@ -187,6 +197,7 @@ impl Default for DriveTrainConfig {
             select_every: 1_000,
             select_episodes: 5,
             checkpoint_every: 5_000,
+            train_roads: 0,
         }
     }
 }
@@ -850,6 +861,8 @@ fn train_method(
 ) -> Result<Stop> {
     let cfg = &run.train;
     let mut env = make_env(&run.drive)?;
+    env.inner_mut()
+        .set_road_pool(TRAIN_FIRST_TRACK_SEED, cfg.train_roads);
     progress.start(&format!("{}/SVG", st.method), cfg.steps, st.svg.env_steps());
     let mut next_save = st
         .svg
