@@ -45,6 +45,7 @@ pub mod hopper;
 pub mod reacher;
 pub mod registry;
 pub mod walker2d;
+pub mod watched;
 
 pub use ant::{Ant, AntConfig};
 pub use common::MujocoEnv;
@@ -55,6 +56,7 @@ pub use reacher::{Reacher, ReacherConfig};
 pub use registry::{BoxedEnv, EnvId, make};
 pub use simulation::Simulation;
 pub use walker2d::{Walker2d, Walker2dConfig};
+pub use watched::{WatchedEnv, describe_warnings};
 
 /// The version string of the MuJoCo library loaded at run time (this crate
 /// binds 3.17.0).
