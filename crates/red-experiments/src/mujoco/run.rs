@@ -294,24 +294,21 @@ impl RunConfig {
         Ok(())
     }
 
-    /// The task's defaults ([`RunConfig::for_task`]) overwritten by the
-    /// fields of the JSON object `json` (a `config.json` or part of one;
-    /// nested objects are merged field by field, unknown fields refused).
+    /// These settings overwritten by the fields of the JSON object `json`
+    /// (a `config.json` or part of one, read from `source`; nested objects
+    /// are merged field by field, so missing fields keep their values;
+    /// unknown fields are refused).
     ///
     /// # Errors
     /// [`Error::Input`] naming `source` for text that is not JSON, an unknown
-    /// field, or another task or method than `env` and `method`.
-    pub fn for_task_with_overrides(
-        env: EnvId,
-        method: Method,
-        json: &str,
-        source: &Path,
-    ) -> Result<Self> {
+    /// field, or another task or method than these settings'.
+    pub fn with_overrides(self, json: &str, source: &Path) -> Result<Self> {
         let bad = |reason: String| Error::Input {
             path: source.to_path_buf(),
             reason,
         };
-        let mut base = serde_json::to_value(Self::for_task(env, method))
+        let (env, method) = (self.env, self.method);
+        let mut base = serde_json::to_value(self)
             .map_err(|e| bad(format!("cannot serialise the defaults: {e}")))?;
         let over: serde_json::Value =
             serde_json::from_str(json).map_err(|e| bad(format!("parsing: {e}")))?;
