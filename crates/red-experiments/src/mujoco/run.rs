@@ -1222,6 +1222,114 @@ pub fn evaluate_file(
 mod tests {
     use super::*;
 
+    /// Counts what a run tells its observer.
+    #[derive(Default)]
+    struct Recorder {
+        starts: usize,
+        advances: Vec<u64>,
+        notes: Vec<String>,
+        finishes: usize,
+    }
+
+    impl Progress for Recorder {
+        fn note(&mut self, text: &str) {
+            self.notes.push(text.into());
+        }
+        fn start(&mut self, _label: &str, _total: u64, _done: u64) {
+            self.starts += 1;
+        }
+        fn advance(&mut self, done: u64, _message: &str) {
+            self.advances.push(done);
+        }
+        fn finish(&mut self) {
+            self.finishes += 1;
+        }
+    }
+
+    #[test]
+    fn a_stopped_run_resumes_to_the_numbers_of_an_uninterrupted_one() {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut cfg = RunConfig::for_task(EnvId::Reacher, Method::Expert);
+        cfg.trpo.steps_per_batch = 128;
+        cfg.steps = 256;
+        cfg.eval_episodes = 1;
+        cfg.demo_trajectories = 1;
+        let never = AtomicBool::new(false);
+        let full = tmp.path().join("full");
+        let mut p = Recorder::default();
+        let out = run(&full, Some(cfg.clone()), false, &never, &mut p).unwrap();
+        assert_eq!(out, Outcome::Finished);
+        assert_eq!((p.starts, p.finishes), (1, 1));
+        assert_eq!(p.advances, [128, 256, 256]);
+        assert!(full.join("demos.json").is_file());
+
+        let split = tmp.path().join("split");
+        let now = AtomicBool::new(true);
+        let out = run(&split, Some(cfg), false, &now, &mut Recorder::default()).unwrap();
+        assert_eq!(out, Outcome::Interrupted);
+        assert!(!split.join("eval.json").exists());
+        let out = run(&split, None, true, &never, &mut Recorder::default()).unwrap();
+        assert_eq!(out, Outcome::Finished);
+        let rows = |d: &Path| -> Vec<String> {
+            std::fs::read_to_string(d.join("metrics.csv"))
+                .unwrap()
+                .lines()
+                .map(|l| l.rsplit_once(',').unwrap().0.to_string())
+                .collect()
+        };
+        assert_eq!(rows(&full), rows(&split));
+        assert_eq!(
+            read_eval(&full).unwrap().final_policy.returns,
+            read_eval(&split).unwrap().final_policy.returns
+        );
+        assert!(
+            read_eval(&full)
+                .unwrap()
+                .summary(&full)
+                .contains("final policy (256 env steps)")
+        );
+    }
+
+    #[test]
+    fn a_new_run_refuses_a_folder_that_holds_one_and_overrides_are_merged() {
+        let tmp = tempfile::tempdir().unwrap();
+        let base = RunConfig::for_task(EnvId::Hopper, Method::Red);
+        let src = tmp.path().join("over.json");
+        let c = base
+            .clone()
+            .with_overrides(r#"{"trpo": {"steps_per_batch": 256}}"#, &src)
+            .unwrap();
+        assert_eq!(c.trpo.steps_per_batch, 256);
+        assert_eq!(c.trpo.max_kl, base.trpo.max_kl);
+        let e = base
+            .clone()
+            .with_overrides(r#"{"method": "gail"}"#, &src)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("another task or method"), "{e}");
+        let e = base
+            .with_overrides(r#"{"trpoo": {}}"#, &src)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("trpoo"), "{e}");
+
+        let dir = tmp.path().join("r");
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("config.json"), "{}").unwrap();
+        let mut cfg = RunConfig::for_task(EnvId::Reacher, Method::Expert);
+        cfg.steps = 128;
+        let e = run(
+            &dir,
+            Some(cfg),
+            false,
+            &AtomicBool::new(false),
+            &mut crate::Silent,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("already holds a run"), "{e}");
+    }
+
     #[test]
     fn evaluation_breaks_the_return_into_the_tasks_reward_terms() {
         let mut env = WatchedEnv::new(EnvId::Ant).unwrap();
