@@ -13,13 +13,12 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::{Args, Subcommand, ValueEnum};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
-use red_core::Env;
-use red_core::check::{CheckConfig, check_env_with};
 use red_experiments::Progress;
-use red_experiments::mujoco::run::{self, Outcome, RunConfig};
+use red_experiments::mujoco::check::{EnvCheck, check_env};
+use red_experiments::mujoco::run::{self, Outcome, PolicyEval, RunConfig};
 use red_experiments::mujoco::table::{self, GridProgress, TableConfig};
 use red_experiments::mujoco::{Method, default_demo, default_run_name, short_name};
-use red_mujoco::{EnvId, MujocoEnv};
+use red_mujoco::EnvId;
 
 use crate::interrupt;
 
@@ -491,117 +490,19 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Prints where the return comes from: each reward term of the task summed
-/// over an episode, and the other info entries (velocities, positions) as
-/// means per step, all averaged over the episodes.
-fn print_breakdown(report: &red_rl::rollout::EvalReport) {
-    let steps = report.mean_length().max(1.0);
-    let (terms, other): (Vec<_>, Vec<_>) = report
-        .info_totals
-        .iter()
-        .partition(|(k, _)| k.starts_with("reward_"));
-    let show = |v: &[&(String, f64)], scale: f64| {
-        v.iter()
-            .map(|(k, x)| format!("{k} {:.2}", x / scale))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    if !terms.is_empty() {
-        println!("  per episode: {}", show(&terms, 1.0));
-    }
-    if !other.is_empty() {
-        println!("  per step: {}", show(&other, steps));
-    }
-}
-
 fn eval(args: EvalArgs) -> anyhow::Result<()> {
     let env: EnvId = args.env.parse()?;
     let (report, warnings) =
         run::evaluate_file(&args.policy, env, args.episodes, args.seed, args.stochastic)?;
-    let actions = if args.stochastic {
-        "sampled"
-    } else {
-        "deterministic"
-    };
-    println!(
-        "{} on {env}: {:.2} +- {:.2} over {} episodes ({actions} actions, true reward; mean length {:.0})",
-        args.policy.display(),
-        report.mean_return(),
-        report.std_return(),
-        report.returns.len(),
-        report.mean_length()
-    );
-    print_breakdown(&report);
+    let e = PolicyEval::new(&args.policy, env, args.seed, args.stochastic, &report);
+    print!("{}", e.summary());
     if warnings > 0 {
         println!("MuJoCo warnings during the evaluation: {warnings}");
     }
     if let Some(out) = &args.out {
-        #[derive(serde::Serialize)]
-        struct Out<'a> {
-            policy: String,
-            env: &'a str,
-            episodes: usize,
-            seed: u64,
-            actions: &'a str,
-            mean: f64,
-            std: f64,
-            returns: &'a [f64],
-            lengths: &'a [usize],
-            info_totals: &'a [(String, f64)],
-        }
-        let o = Out {
-            policy: args.policy.display().to_string(),
-            env: env.name(),
-            episodes: args.episodes,
-            seed: args.seed,
-            actions,
-            mean: report.mean_return(),
-            std: report.std_return(),
-            returns: &report.returns,
-            lengths: &report.lengths,
-            info_totals: &report.info_totals,
-        };
-        red_core::checkpoint::write_atomic(out, serde_json::to_string_pretty(&o)?.as_bytes())?;
+        red_core::checkpoint::write_atomic(out, serde_json::to_string_pretty(&e)?.as_bytes())?;
     }
     Ok(())
-}
-
-/// One line of the check's table.
-struct Row {
-    id: EnvId,
-    obs_dim: usize,
-    act_dim: usize,
-    frame_skip: usize,
-    dt: f64,
-    episodes: usize,
-    terminated: usize,
-    steps_per_s: f64,
-}
-
-fn check_one(id: EnvId, steps: usize, seed: u64) -> anyhow::Result<Row> {
-    let mut env = id
-        .make()
-        .with_context(|| format!("cannot build {id} (did you run scripts/setup-mujoco.sh?)"))?;
-    let config = CheckConfig {
-        seed,
-        steps,
-        ..CheckConfig::default()
-    };
-    let start = Instant::now();
-    let report = check_env_with(&mut env, &config).with_context(|| format!("{id}"))?;
-    // The checker plays `steps` steps twice.
-    let steps_per_s = (2 * steps) as f64 / start.elapsed().as_secs_f64();
-    let sim = env.inner().simulation();
-    Ok(Row {
-        id,
-        obs_dim: env.observation_space().dim(),
-        act_dim: env.action_space().dim(),
-        frame_skip: sim.frame_skip(),
-        dt: sim.dt(),
-        episodes: report.episodes,
-        terminated: report.terminated,
-        steps_per_s,
-    })
 }
 
 fn check(args: CheckArgs) -> anyhow::Result<()> {
@@ -618,24 +519,9 @@ fn check(args: CheckArgs) -> anyhow::Result<()> {
         Some((dir, source)) => println!("model files: {} ({source})", dir.display()),
         None => println!("model files: no folder configured"),
     }
-    println!(
-        "| env | obs | act | frame skip | dt (s) | time limit | episodes ended (terminated) | steps/s |"
-    );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("{}", EnvCheck::HEADER);
     for id in ids {
-        let r = check_one(id, args.steps, args.seed)?;
-        println!(
-            "| {} | {} | {} | {} | {} | {} | {} ({}) | {:.0} |",
-            r.id,
-            r.obs_dim,
-            r.act_dim,
-            r.frame_skip,
-            r.dt,
-            r.id.max_episode_steps(),
-            r.episodes,
-            r.terminated,
-            r.steps_per_s
-        );
+        println!("{}", check_env(id, args.steps, args.seed)?.row());
     }
     println!("all environments passed the env checker");
     Ok(())
@@ -644,14 +530,6 @@ fn check(args: CheckArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn checks_an_environment() {
-        let row = check_one(EnvId::Reacher, 120, 1).unwrap();
-        assert_eq!((row.obs_dim, row.act_dim, row.frame_skip), (10, 2, 2));
-        assert_eq!(row.episodes, 2);
-        assert!(row.steps_per_s > 0.0);
-    }
 
     #[test]
     fn rejects_unknown_environments() {

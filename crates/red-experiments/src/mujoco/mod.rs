@@ -32,6 +32,7 @@ use std::path::{Path, PathBuf};
 use red_mujoco::EnvId;
 use serde::{Deserialize, Serialize};
 
+pub mod check;
 pub mod run;
 pub mod table;
 

@@ -1183,6 +1183,87 @@ pub fn record_demos(id: EnvId, policy: &GaussianPolicy, n: usize, seed: u64) -> 
     Ok(demos)
 }
 
+/// The evaluation of a policy file, as `red-cli mujoco eval --out` writes
+/// it.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct PolicyEval {
+    /// The policy file.
+    pub policy: String,
+    /// The task (`Hopper-v5`, ...).
+    pub env: String,
+    /// Episodes.
+    pub episodes: usize,
+    /// Seed of the episodes' resets.
+    pub seed: u64,
+    /// `deterministic` (the policy's mean) or `sampled` actions.
+    pub actions: String,
+    /// Mean true return.
+    pub mean: f64,
+    /// Standard deviation (population) of the true return.
+    pub std: f64,
+    /// Every episode's true return.
+    pub returns: Vec<f64>,
+    /// Every episode's length.
+    pub lengths: Vec<usize>,
+    /// The environment's info entries summed over an episode, averaged over
+    /// the episodes (reward terms, velocities, positions).
+    pub info_totals: Vec<(String, f64)>,
+}
+
+impl PolicyEval {
+    /// The evaluation `report` of the policy file `policy` on `id`.
+    pub fn new(policy: &Path, id: EnvId, seed: u64, sampled: bool, report: &EvalReport) -> Self {
+        Self {
+            policy: policy.display().to_string(),
+            env: id.name().into(),
+            episodes: report.returns.len(),
+            seed,
+            actions: if sampled { "sampled" } else { "deterministic" }.into(),
+            mean: report.mean_return(),
+            std: report.std_return(),
+            returns: report.returns.clone(),
+            lengths: report.lengths.clone(),
+            info_totals: report.info_totals.clone(),
+        }
+    }
+
+    /// A few lines for people: the mean return, then where it comes from:
+    /// each reward term of the task summed over an episode, and the other
+    /// info entries (velocities, positions) as means per step.
+    pub fn summary(&self) -> String {
+        let mean_length =
+            self.lengths.iter().sum::<usize>() as f64 / self.lengths.len().max(1) as f64;
+        let mut s = format!(
+            "{} on {}: {:.2} +- {:.2} over {} episodes ({} actions, true reward; mean length {:.0})\n",
+            self.policy,
+            self.env,
+            self.mean,
+            self.std,
+            self.returns.len(),
+            self.actions,
+            mean_length
+        );
+        let steps = mean_length.max(1.0);
+        let (terms, other): (Vec<_>, Vec<_>) = self
+            .info_totals
+            .iter()
+            .partition(|(k, _)| k.starts_with("reward_"));
+        let show = |v: &[&(String, f64)], scale: f64| {
+            v.iter()
+                .map(|(k, x)| format!("{k} {:.2}", x / scale))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        if !terms.is_empty() {
+            s.push_str(&format!("  per episode: {}\n", show(&terms, 1.0)));
+        }
+        if !other.is_empty() {
+            s.push_str(&format!("  per step: {}\n", show(&other, steps)));
+        }
+        s
+    }
+}
+
 /// Runs the policy file `path` on `id` for `episodes` episodes with the
 /// true reward: deterministic (mean) actions, or actions sampled from the
 /// policy's Gaussian when `sampled`.
