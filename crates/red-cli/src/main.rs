@@ -40,8 +40,6 @@ mod drive;
 mod drive_train;
 mod interrupt;
 mod mujoco;
-mod mujoco_run;
-mod mujoco_table;
 mod progress;
 mod road;
 mod support;

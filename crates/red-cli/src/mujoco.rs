@@ -2,18 +2,25 @@
 //! HalfCheetah, Walker2d, Ant, Reacher): set-up check, experts and their
 //! demonstrations, imitation runs (paper Sec. 5.2), evaluation, and the
 //! grid of Table 1.
+//!
+//! A thin front end over `red_experiments::mujoco`: arguments to configs,
+//! progress bars (a `Progress` per run, one per running cell of the grid),
+//! Ctrl-C as the stop flag, and printing what the library returns.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
-use clap::{Args, Subcommand};
-use red_core::Env;
-use red_core::check::{CheckConfig, check_env_with};
-use red_mujoco::{EnvId, MujocoEnv};
+use clap::{Args, Subcommand, ValueEnum};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use red_experiments::Progress;
+use red_experiments::mujoco::check::{EnvCheck, check_env};
+use red_experiments::mujoco::run::{self, Outcome, PolicyEval, RunConfig};
+use red_experiments::mujoco::table::{self, GridProgress, TableConfig};
+use red_experiments::mujoco::{Method, default_demo, default_run_name, short_name};
+use red_mujoco::EnvId;
 
-use crate::mujoco_run::{self, Method, Outcome, RunConfig, RunOptions};
-use crate::{interrupt, mujoco_table};
+use crate::interrupt;
 
 /// Arguments of `red-cli mujoco`.
 #[derive(Debug, Args)]
@@ -41,12 +48,43 @@ enum MujocoCommand {
     Eval(EvalArgs),
     /// Run a grid of tasks x methods x seeds in parallel and write the
     /// paper's Table 1 (markdown and CSV) and a learning-curve PNG per task.
-    Table(mujoco_table::TableArgs),
+    Table(TableArgs),
+}
+
+/// How the policy is trained (`red_experiments::mujoco::Method`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum MethodArg {
+    /// TRPO on the environment's true reward (an expert for demonstrations).
+    Expert,
+    /// RED: TRPO on `exp(-sigma1 L)` with `L` the RND score (paper Eq. 7).
+    Red,
+    /// The autoencoder baseline: the same reward with an autoencoder's
+    /// reconstruction error as `L`.
+    Ae,
+    /// GAIL's discriminator reward, adapted on every batch.
+    Gail,
+    /// GMMIL's MMD witness reward, adapted on every batch.
+    Gmmil,
+    /// Behaviour cloning alone (no reinforcement learning).
+    Bc,
+}
+
+impl From<MethodArg> for Method {
+    fn from(m: MethodArg) -> Self {
+        match m {
+            MethodArg::Expert => Method::Expert,
+            MethodArg::Red => Method::Red,
+            MethodArg::Ae => Method::Ae,
+            MethodArg::Gail => Method::Gail,
+            MethodArg::Gmmil => Method::Gmmil,
+            MethodArg::Bc => Method::Bc,
+        }
+    }
 }
 
 /// Options shared by `expert` and `train`.
 #[derive(Debug, Args)]
-pub(crate) struct CommonRunArgs {
+struct CommonRunArgs {
     /// Environment steps of TRPO (default: 5,000,000 for `expert`,
     /// 2,000,000 for `train`).
     #[arg(long)]
@@ -104,7 +142,7 @@ struct TrainArgs {
     env: Option<String>,
     /// The method.
     #[arg(long, value_enum)]
-    method: Option<Method>,
+    method: Option<MethodArg>,
     /// Demonstration file (default: `<out-dir>/expert-<env>/demos.json`,
     /// written by `red-cli mujoco expert`).
     #[arg(long)]
@@ -151,6 +189,46 @@ struct CheckArgs {
     seed: u64,
 }
 
+/// Arguments of `red-cli mujoco table`.
+#[derive(Debug, Args)]
+struct TableArgs {
+    /// Tasks, comma-separated (default: all five).
+    #[arg(long, value_delimiter = ',')]
+    envs: Vec<String>,
+    /// Methods, comma-separated (default: red, ae, gail, gmmil, bc).
+    #[arg(long, value_delimiter = ',', value_enum)]
+    methods: Vec<MethodArg>,
+    /// Seeds, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "0")]
+    seeds: Vec<u64>,
+    /// Environment steps of each TRPO run (the release's README example:
+    /// 2,000,000; the paper: 5,000,000).
+    #[arg(long, default_value_t = 2_000_000)]
+    steps: u64,
+    /// Name of the grid: outputs go to `<out-dir>/<name>/`.
+    #[arg(long, default_value = "mujoco-table")]
+    name: String,
+    /// Folder of the runs.
+    #[arg(long, default_value = "runs")]
+    out_dir: PathBuf,
+    /// Folder holding `expert-<task>/` (demos and expert evaluation)
+    /// (default: `--out-dir`).
+    #[arg(long)]
+    experts_dir: Option<PathBuf>,
+    /// Runs at once (default: the number of cores).
+    #[arg(long)]
+    jobs: Option<usize>,
+    /// Evaluation episodes per run and protocol.
+    #[arg(long, default_value_t = 50)]
+    eval_episodes: usize,
+    /// TRPO iterations between checkpoints.
+    #[arg(long, default_value_t = 50)]
+    checkpoint_every: u64,
+    /// Only build the table and plots from the runs already finished.
+    #[arg(long)]
+    report_only: bool,
+}
+
 /// Runs `red-cli mujoco ...`.
 pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
     match args.command {
@@ -170,9 +248,10 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
                 .env
                 .context("--env is required (or --resume RUN_DIR)")?
                 .parse()?;
-            let method = a
+            let method: Method = a
                 .method
-                .context("--method is required (red, ae, gail, gmmil or bc)")?;
+                .context("--method is required (red, ae, gail, gmmil or bc)")?
+                .into();
             anyhow::ensure!(
                 method != Method::Expert,
                 "use `red-cli mujoco expert` to train an expert"
@@ -180,13 +259,13 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
             start_run(env, method, a.demo, a.common)
         }
         MujocoCommand::Eval(a) => eval(a),
-        MujocoCommand::Table(a) => mujoco_table::run(a),
+        MujocoCommand::Table(a) => table(a),
     }
 }
 
 /// The settings of a new run from the task's defaults, a `--config` file
 /// and the command line.
-pub(crate) fn build_config(
+fn build_config(
     env: EnvId,
     method: Method,
     demo: Option<PathBuf>,
@@ -200,17 +279,7 @@ pub(crate) fn build_config(
         let text =
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         // Fields missing from the file keep the task's defaults.
-        let mut base = serde_json::to_value(&cfg)?;
-        let over: serde_json::Value =
-            serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-        merge(&mut base, over);
-        cfg =
-            serde_json::from_value(base).with_context(|| format!("reading {}", path.display()))?;
-        anyhow::ensure!(
-            cfg.env == env && cfg.method == method,
-            "{} sets another task or method than the command line",
-            path.display()
-        );
+        cfg = cfg.with_overrides(&text, path)?;
     }
     cfg.seed = common.seed;
     if let Some(s) = common.steps {
@@ -235,36 +304,78 @@ pub(crate) fn build_config(
     Ok(cfg)
 }
 
-/// Overwrites `base` with the fields of `over`, recursively for objects.
-fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
-    match (base, over) {
-        (serde_json::Value::Object(b), serde_json::Value::Object(o)) => {
-            for (k, v) in o {
-                match b.get_mut(&k) {
-                    Some(slot) => merge(slot, v),
-                    None => {
-                        b.insert(k, v);
-                    }
-                }
-            }
+/// The progress bar style of a training run.
+fn bar_style() -> ProgressStyle {
+    ProgressStyle::with_template(
+        "{prefix:>22} {bar:28} {pos:>9}/{len} steps {elapsed_precise} (eta {eta}) {msg}",
+    )
+    .unwrap_or_else(|_| ProgressStyle::default_bar())
+}
+
+/// A run's progress bar; notes go above it, or to stderr prefixed with the
+/// run's label when the bar is hidden (logs). Removed from `multi` when
+/// dropped.
+struct RunBar {
+    bar: ProgressBar,
+    label: String,
+    multi: Option<MultiProgress>,
+    /// The hidden `--stop-after-iterations` testing aid, in env steps:
+    /// behaves as Ctrl-C once the run has reached them.
+    stop_after_steps: Option<u64>,
+}
+
+impl RunBar {
+    fn new(label: String, multi: Option<&MultiProgress>) -> Self {
+        let bar = ProgressBar::new(0);
+        let bar = match multi {
+            Some(m) => m.add(bar),
+            None => bar,
+        };
+        bar.set_style(bar_style());
+        bar.set_prefix(label.clone());
+        Self {
+            bar,
+            label,
+            multi: multi.cloned(),
+            stop_after_steps: None,
         }
-        (b, o) => *b = o,
     }
 }
 
-/// Where `red-cli mujoco expert` puts the demonstrations of `env`.
-pub(crate) fn default_demo(out_dir: &Path, env: EnvId) -> PathBuf {
-    expert_dir(out_dir, env).join("demos.json")
+impl Progress for RunBar {
+    fn note(&mut self, text: &str) {
+        if self.bar.is_hidden() {
+            eprintln!("{}: {text}", self.label);
+        } else {
+            self.bar.println(text);
+        }
+    }
+
+    fn start(&mut self, _label: &str, total: u64, done: u64) {
+        self.bar.set_length(total);
+        self.bar.set_position(done);
+    }
+
+    fn advance(&mut self, done: u64, message: &str) {
+        self.bar.set_position(done);
+        self.bar.set_message(message.to_string());
+        if self.stop_after_steps.is_some_and(|s| done >= s) {
+            interrupt::request();
+        }
+    }
+
+    fn finish(&mut self) {
+        self.bar.finish_and_clear();
+    }
 }
 
-/// The run folder of `red-cli mujoco expert --env <env>`.
-pub(crate) fn expert_dir(out_dir: &Path, env: EnvId) -> PathBuf {
-    out_dir.join(format!("expert-{}", short_name(env)))
-}
-
-/// `hopper`, `halfcheetah`, ...
-pub(crate) fn short_name(env: EnvId) -> String {
-    env.name().trim_end_matches("-v5").to_ascii_lowercase()
+impl Drop for RunBar {
+    fn drop(&mut self) {
+        self.bar.finish_and_clear();
+        if let Some(m) = &self.multi {
+            m.remove(&self.bar);
+        }
+    }
 }
 
 fn start_run(
@@ -276,195 +387,122 @@ fn start_run(
     interrupt::install();
     let (dir, cfg, resume) = match &common.resume {
         Some(dir) => {
-            let mut cfg = mujoco_run::read_config(dir)?;
+            let mut cfg = run::read_config(dir)?;
             if let Some(s) = common.steps {
                 cfg.steps = s;
             }
-            (dir.clone(), Some(cfg), true)
+            (dir.clone(), cfg, true)
         }
         None => {
             let cfg = build_config(env, method, demo, &common)?;
-            let name = common.name.clone().unwrap_or_else(|| match method {
-                Method::Expert => format!("expert-{}", short_name(env)),
-                m => format!("{}-{}-s{}", short_name(env), m.name(), cfg.seed),
-            });
-            (common.out_dir.join(name), Some(cfg), false)
+            let name = common
+                .name
+                .clone()
+                .unwrap_or_else(|| default_run_name(env, method, cfg.seed));
+            (common.out_dir.join(name), cfg, false)
         }
     };
-    let label = cfg
-        .as_ref()
-        .map(|c| format!("{} {}", short_name(c.env), c.method.name()))
-        .unwrap_or_default();
-    let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(mujoco_run::bar_style());
-    bar.set_prefix(label.clone());
-    let opts = RunOptions {
-        bar: bar.clone(),
-        log_prefix: Some(label),
-        stop_after_iterations: common.stop_after_iterations,
-    };
-    let outcome = mujoco_run::run(&dir, cfg, resume, &opts)?;
-    bar.finish_and_clear();
+    let mut bar = RunBar::new(
+        format!("{} {}", short_name(cfg.env), cfg.method.name()),
+        None,
+    );
+    bar.stop_after_steps = common
+        .stop_after_iterations
+        .map(|k| k * cfg.trpo.steps_per_batch as u64);
+    let outcome = run::run(&dir, Some(cfg), resume, interrupt::flag(), &mut bar)?;
+    drop(bar);
     if outcome == Outcome::Interrupted {
         println!("interrupted; continue with --resume {}", dir.display());
         return Ok(());
     }
-    print_eval(&dir)
-}
-
-fn print_eval(dir: &Path) -> anyhow::Result<()> {
-    let e = mujoco_run::read_eval(dir)
+    let e = run::read_eval(&dir)
         .with_context(|| format!("reading {}", dir.join("eval.json").display()))?;
-    println!(
-        "{} {} seed {} ({} episodes, deterministic actions, true reward):",
-        e.env, e.method, e.seed, e.episodes
-    );
-    println!(
-        "  final policy ({} env steps): {:.2} +- {:.2} (mean length {:.0})",
-        e.final_policy.env_steps,
-        e.final_policy.mean,
-        e.final_policy.std,
-        e.final_policy.mean_length
-    );
-    if let Some(b) = &e.best_checkpoint {
-        println!(
-            "  best checkpoint by training true return ({} env steps): {:.2} +- {:.2}",
-            b.env_steps, b.mean, b.std
-        );
-    }
-    if let Some(r) = &e.demo_returns {
-        println!(
-            "  expert: {}; demonstrations written ({} trajectories, returns {})",
-            e.expert_choice.as_deref().unwrap_or("-"),
-            r.len(),
-            r.iter()
-                .map(|x| format!("{x:.1}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-    }
-    if e.mujoco_warnings > 0 {
-        println!("  MuJoCo warnings during training: {}", e.mujoco_warnings);
-    }
-    println!(
-        "  wall time {:.0} s; outputs in {}",
-        e.wall_s,
-        dir.display()
-    );
+    print!("{}", e.summary(&dir));
     Ok(())
 }
 
-/// Prints where the return comes from: each reward term of the task summed
-/// over an episode, and the other info entries (velocities, positions) as
-/// means per step, all averaged over the episodes.
-fn print_breakdown(report: &red_rl::rollout::EvalReport) {
-    let steps = report.mean_length().max(1.0);
-    let (terms, other): (Vec<_>, Vec<_>) = report
-        .info_totals
-        .iter()
-        .partition(|(k, _)| k.starts_with("reward_"));
-    let show = |v: &[&(String, f64)], scale: f64| {
-        v.iter()
-            .map(|(k, x)| format!("{k} {:.2}", x / scale))
-            .collect::<Vec<_>>()
-            .join(", ")
+/// Bars of the grid's running cells under one another.
+struct GridBars {
+    multi: MultiProgress,
+}
+
+impl GridProgress for GridBars {
+    fn note(&self, text: &str) {
+        if self.multi.is_hidden() {
+            eprintln!("{text}");
+        } else {
+            let _ = self.multi.println(text);
+        }
+    }
+
+    fn cell(&self, label: &str) -> Box<dyn Progress + '_> {
+        Box::new(RunBar::new(label.to_string(), Some(&self.multi)))
+    }
+}
+
+/// Runs `red-cli mujoco table`.
+fn table(args: TableArgs) -> anyhow::Result<()> {
+    let mut cfg = TableConfig {
+        seeds: args.seeds,
+        steps: args.steps,
+        name: args.name,
+        out_dir: args.out_dir,
+        experts_dir: args.experts_dir,
+        jobs: args.jobs,
+        eval_episodes: args.eval_episodes,
+        checkpoint_every: args.checkpoint_every,
+        ..TableConfig::default()
     };
-    if !terms.is_empty() {
-        println!("  per episode: {}", show(&terms, 1.0));
+    if !args.envs.is_empty() {
+        cfg.envs = args
+            .envs
+            .iter()
+            .map(|s| s.parse::<EnvId>())
+            .collect::<Result<_, _>>()?;
     }
-    if !other.is_empty() {
-        println!("  per step: {}", show(&other, steps));
+    if !args.methods.is_empty() {
+        cfg.methods = args.methods.iter().map(|&m| m.into()).collect();
     }
+    cfg.validate()?;
+    let started = Instant::now();
+    if !args.report_only {
+        interrupt::install();
+        let bars = GridBars {
+            multi: MultiProgress::new(),
+        };
+        let outcome = table::run_grid(&cfg, interrupt::flag(), &bars)?;
+        for f in &outcome.failures {
+            eprintln!("failed: {f}");
+        }
+        if outcome.interrupted {
+            eprintln!(
+                "interrupted: the runs saved checkpoints; rerun the same command to continue"
+            );
+        }
+    }
+    let report = table::write_report(&cfg)?;
+    println!("{}", report.markdown);
+    println!(
+        "({:.0} s; table, CSV and curves in {})",
+        started.elapsed().as_secs_f64(),
+        cfg.root().display()
+    );
+    Ok(())
 }
 
 fn eval(args: EvalArgs) -> anyhow::Result<()> {
     let env: EnvId = args.env.parse()?;
     let (report, warnings) =
-        mujoco_run::evaluate_file(&args.policy, env, args.episodes, args.seed, args.stochastic)?;
-    let actions = if args.stochastic {
-        "sampled"
-    } else {
-        "deterministic"
-    };
-    println!(
-        "{} on {env}: {:.2} +- {:.2} over {} episodes ({actions} actions, true reward; mean length {:.0})",
-        args.policy.display(),
-        report.mean_return(),
-        report.std_return(),
-        report.returns.len(),
-        report.mean_length()
-    );
-    print_breakdown(&report);
+        run::evaluate_file(&args.policy, env, args.episodes, args.seed, args.stochastic)?;
+    let e = PolicyEval::new(&args.policy, env, args.seed, args.stochastic, &report);
+    print!("{}", e.summary());
     if warnings > 0 {
         println!("MuJoCo warnings during the evaluation: {warnings}");
     }
     if let Some(out) = &args.out {
-        #[derive(serde::Serialize)]
-        struct Out<'a> {
-            policy: String,
-            env: &'a str,
-            episodes: usize,
-            seed: u64,
-            actions: &'a str,
-            mean: f64,
-            std: f64,
-            returns: &'a [f64],
-            lengths: &'a [usize],
-            info_totals: &'a [(String, f64)],
-        }
-        let o = Out {
-            policy: args.policy.display().to_string(),
-            env: env.name(),
-            episodes: args.episodes,
-            seed: args.seed,
-            actions,
-            mean: report.mean_return(),
-            std: report.std_return(),
-            returns: &report.returns,
-            lengths: &report.lengths,
-            info_totals: &report.info_totals,
-        };
-        red_core::checkpoint::write_atomic(out, serde_json::to_string_pretty(&o)?.as_bytes())?;
+        red_core::checkpoint::write_atomic(out, serde_json::to_string_pretty(&e)?.as_bytes())?;
     }
     Ok(())
-}
-
-/// One line of the check's table.
-struct Row {
-    id: EnvId,
-    obs_dim: usize,
-    act_dim: usize,
-    frame_skip: usize,
-    dt: f64,
-    episodes: usize,
-    terminated: usize,
-    steps_per_s: f64,
-}
-
-fn check_one(id: EnvId, steps: usize, seed: u64) -> anyhow::Result<Row> {
-    let mut env = id
-        .make()
-        .with_context(|| format!("cannot build {id} (did you run scripts/setup-mujoco.sh?)"))?;
-    let config = CheckConfig {
-        seed,
-        steps,
-        ..CheckConfig::default()
-    };
-    let start = Instant::now();
-    let report = check_env_with(&mut env, &config).with_context(|| format!("{id}"))?;
-    // The checker plays `steps` steps twice.
-    let steps_per_s = (2 * steps) as f64 / start.elapsed().as_secs_f64();
-    let sim = env.inner().simulation();
-    Ok(Row {
-        id,
-        obs_dim: env.observation_space().dim(),
-        act_dim: env.action_space().dim(),
-        frame_skip: sim.frame_skip(),
-        dt: sim.dt(),
-        episodes: report.episodes,
-        terminated: report.terminated,
-        steps_per_s,
-    })
 }
 
 fn check(args: CheckArgs) -> anyhow::Result<()> {
@@ -481,24 +519,9 @@ fn check(args: CheckArgs) -> anyhow::Result<()> {
         Some((dir, source)) => println!("model files: {} ({source})", dir.display()),
         None => println!("model files: no folder configured"),
     }
-    println!(
-        "| env | obs | act | frame skip | dt (s) | time limit | episodes ended (terminated) | steps/s |"
-    );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("{}", EnvCheck::HEADER);
     for id in ids {
-        let r = check_one(id, args.steps, args.seed)?;
-        println!(
-            "| {} | {} | {} | {} | {} | {} | {} ({}) | {:.0} |",
-            r.id,
-            r.obs_dim,
-            r.act_dim,
-            r.frame_skip,
-            r.dt,
-            r.id.max_episode_steps(),
-            r.episodes,
-            r.terminated,
-            r.steps_per_s
-        );
+        println!("{}", check_env(id, args.steps, args.seed)?.row());
     }
     println!("all environments passed the env checker");
     Ok(())
@@ -507,14 +530,6 @@ fn check(args: CheckArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn checks_an_environment() {
-        let row = check_one(EnvId::Reacher, 120, 1).unwrap();
-        assert_eq!((row.obs_dim, row.act_dim, row.frame_skip), (10, 2, 2));
-        assert_eq!(row.episodes, 2);
-        assert!(row.steps_per_s > 0.0);
-    }
 
     #[test]
     fn rejects_unknown_environments() {

@@ -50,6 +50,15 @@ pub enum Error {
     /// An error of the driving scenario.
     #[error(transparent)]
     Drive(#[from] red_drive::Error),
+    /// An error of a MuJoCo environment (a model that cannot be loaded).
+    #[error(transparent)]
+    Mujoco(#[from] red_mujoco::Error),
+    /// A quantity that must be finite was not.
+    #[error("non-finite {what}")]
+    NonFinite {
+        /// What, and where it was met.
+        what: String,
+    },
     /// An error with what was being done when it happened.
     #[error("{context}: {source}")]
     Context {

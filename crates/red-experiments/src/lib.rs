@@ -24,6 +24,7 @@
 
 pub mod drive;
 pub mod error;
+pub mod mujoco;
 pub mod plot;
 pub mod run_dir;
 pub mod toy;

@@ -45,6 +45,7 @@ pub mod hopper;
 pub mod reacher;
 pub mod registry;
 pub mod walker2d;
+pub mod watched;
 
 pub use ant::{Ant, AntConfig};
 pub use common::MujocoEnv;
@@ -55,6 +56,7 @@ pub use reacher::{Reacher, ReacherConfig};
 pub use registry::{BoxedEnv, EnvId, make};
 pub use simulation::Simulation;
 pub use walker2d::{Walker2d, Walker2dConfig};
+pub use watched::{WatchedEnv, describe_warnings};
 
 // The exact versions of the crates this crate's API takes and returns,
 // so that a dependant names the same types (a second version of ndarray or

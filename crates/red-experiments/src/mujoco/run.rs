@@ -1,13 +1,13 @@
-//! One TRPO run on a MuJoCo task, shared by `red-cli mujoco expert`,
-//! `train` and `table`: the run's settings ([`RunConfig`]), its folder,
+//! One TRPO run on a MuJoCo task, shared by experts, imitation runs and
+//! the grid of Table 1: the run's settings ([`RunConfig`]), its folder,
 //! checkpoints, metrics, the best checkpoint by true return, the final
 //! policy and its evaluation.
 //!
-//! A run folder `runs/<name>/` holds:
+//! A run folder `<name>/` holds:
 //! - `config.json`: every setting ([`RunConfig`]);
 //! - `checkpoint.json`: the whole state (trainer, reward model, counters),
-//!   written atomically every `checkpoint_every` iterations, on Ctrl-C and
-//!   at the end; `--resume runs/<name>` continues from it;
+//!   written atomically every `checkpoint_every` iterations, when stopped
+//!   and at the end; [`run`] with `resume` continues from it;
 //! - `metrics.csv`: one row per TRPO iteration (true return, imitation
 //!   reward, losses, MuJoCo warnings);
 //! - `best_policy.json`: the policy whenever the mean TRUE return of the
@@ -21,19 +21,16 @@
 use std::collections::VecDeque;
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use anyhow::{Context, bail, ensure};
-use clap::ValueEnum;
-use indicatif::{ProgressBar, ProgressStyle};
 use ndarray::{Array1, ArrayView2};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use red_core::checkpoint::{load_checkpoint, save_checkpoint, write_atomic};
-use red_core::{
-    Demos, Env, EpisodeEnd, Info, RewardModel, Seeder, Space, Step, Stream, Trajectory,
-};
-use red_mujoco::{BoxedEnv, EnvId, MujocoEnv};
+use red_core::{Demos, Env, EpisodeEnd, RewardModel, Seeder, Space, Stream, Trajectory};
+use red_mujoco::watched::MJ_N_WARNING;
+use red_mujoco::{EnvId, MujocoEnv, WatchedEnv, describe_warnings};
 use red_rl::bc::{BcConfig, behavior_clone};
 use red_rl::gail::{Gail, GailConfig};
 use red_rl::gmmil::{Gmmil, GmmilConfig};
@@ -47,60 +44,11 @@ use red_support::{
 };
 use serde::{Deserialize, Serialize};
 
-use crate::interrupt;
+use super::Method;
+use crate::{Error, Progress, Result, ResultExt, RunDir};
 
-/// The kind written in this command family's checkpoints.
+/// The kind written in this experiment's checkpoints.
 pub const CHECKPOINT_KIND: &str = "mujoco-train";
-
-/// How the policy is trained.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, ValueEnum)]
-#[serde(rename_all = "snake_case")]
-pub enum Method {
-    /// TRPO on the environment's true reward (an expert for demonstrations).
-    Expert,
-    /// RED: TRPO on `exp(-sigma1 L)` with `L` the RND score (paper Eq. 7).
-    Red,
-    /// The autoencoder baseline: the same reward with an autoencoder's
-    /// reconstruction error as `L`.
-    Ae,
-    /// GAIL's discriminator reward, adapted on every batch.
-    Gail,
-    /// GMMIL's MMD witness reward, adapted on every batch.
-    Gmmil,
-    /// Behaviour cloning alone (no reinforcement learning).
-    Bc,
-}
-
-impl Method {
-    /// The lower-case name used in file names and tables.
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Expert => "expert",
-            Method::Red => "red",
-            Method::Ae => "ae",
-            Method::Gail => "gail",
-            Method::Gmmil => "gmmil",
-            Method::Bc => "bc",
-        }
-    }
-
-    /// The name in tables (`RED`, `GAIL`, ...).
-    pub fn label(self) -> &'static str {
-        match self {
-            Method::Expert => "Expert (TRPO, true reward)",
-            Method::Red => "RED",
-            Method::Ae => "AE",
-            Method::Gail => "GAIL",
-            Method::Gmmil => "GMMIL",
-            Method::Bc => "BC",
-        }
-    }
-
-    /// Whether the method learns from demonstrations.
-    pub fn needs_demo(self) -> bool {
-        self != Method::Expert
-    }
-}
 
 /// Every setting of a run, written to `config.json`. Defaults per task and
 /// method come from [`RunConfig::for_task`]; they follow the RED release
@@ -288,10 +236,13 @@ impl RunConfig {
     /// Checks every field.
     ///
     /// # Errors
-    /// A message naming the first bad field.
-    pub fn validate(&self) -> anyhow::Result<()> {
-        let field = |name: &str, r: Result<(), String>| -> anyhow::Result<()> {
-            r.map_err(|e| anyhow::anyhow!("config field `{name}`: {e}"))
+    /// [`Error::InvalidConfig`] naming the first bad field.
+    pub fn validate(&self) -> Result<()> {
+        let field = |name: &str, r: std::result::Result<(), String>| -> Result<()> {
+            r.map_err(|reason| Error::InvalidConfig {
+                field: name.into(),
+                reason,
+            })
         };
         field("trpo", self.trpo.validate().map_err(|e| e.to_string()))?;
         field("rnd", self.rnd.validate().map_err(|e| e.to_string()))?;
@@ -332,12 +283,60 @@ impl RunConfig {
             .map_err(|e| e.to_string()),
         )?;
         if self.method.needs_demo() && self.demo.is_none() {
-            bail!(
-                "config field `demo`: method `{}` needs a demonstration file (--demo)",
-                self.method.name()
-            );
+            return Err(Error::InvalidConfig {
+                field: "demo".into(),
+                reason: format!(
+                    "method `{}` needs a demonstration file (--demo)",
+                    self.method.name()
+                ),
+            });
         }
         Ok(())
+    }
+
+    /// These settings overwritten by the fields of the JSON object `json`
+    /// (a `config.json` or part of one, read from `source`; nested objects
+    /// are merged field by field, so missing fields keep their values;
+    /// unknown fields are refused).
+    ///
+    /// # Errors
+    /// [`Error::Input`] naming `source` for text that is not JSON, an unknown
+    /// field, or another task or method than these settings'.
+    pub fn with_overrides(self, json: &str, source: &Path) -> Result<Self> {
+        let bad = |reason: String| Error::Input {
+            path: source.to_path_buf(),
+            reason,
+        };
+        let (env, method) = (self.env, self.method);
+        let mut base = serde_json::to_value(self)
+            .map_err(|e| bad(format!("cannot serialise the defaults: {e}")))?;
+        let over: serde_json::Value =
+            serde_json::from_str(json).map_err(|e| bad(format!("parsing: {e}")))?;
+        merge(&mut base, over);
+        let cfg: Self = serde_json::from_value(base).map_err(|e| bad(e.to_string()))?;
+        if cfg.env != env || cfg.method != method {
+            return Err(bad(
+                "sets another task or method than the command line".into()
+            ));
+        }
+        Ok(cfg)
+    }
+}
+
+/// Overwrites `base` with the fields of `over`, recursively for objects.
+fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
+    match (base, over) {
+        (serde_json::Value::Object(b), serde_json::Value::Object(o)) => {
+            for (k, v) in o {
+                match b.get_mut(&k) {
+                    Some(slot) => merge(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (b, o) => *b = o,
     }
 }
 
@@ -411,124 +410,14 @@ struct RunState {
     wall_s: f64,
 }
 
-/// MuJoCo's `mjNWARNING`.
-const MJ_N_WARNING: usize = 8;
-/// Names of MuJoCo's warnings (`mjtWarning`), by index.
-const MJ_WARNING_NAMES: [&str; MJ_N_WARNING] = [
-    "inertia (mjWARN_INERTIA)",
-    "contact buffer full (mjWARN_CONTACTFULL)",
-    "constraint buffer full (mjWARN_CNSTRFULL)",
-    "visual geoms full (mjWARN_VGEOMFULL)",
-    "bad qpos (mjWARN_BADQPOS)",
-    "bad qvel (mjWARN_BADQVEL)",
-    "bad qacc, simulation unstable (mjWARN_BADQACC)",
-    "bad ctrl (mjWARN_BADCTRL)",
-];
-
-/// A MuJoCo environment inside its time limit that counts MuJoCo's own
-/// warnings (the `warning` array of `mjData`) after every step, so a run can
-/// report them instead of letting them pass.
-pub struct WatchedEnv {
-    env: red_core::TimeLimit<BoxedEnv>,
-    last: [i64; MJ_N_WARNING],
-    fresh: [u64; MJ_N_WARNING],
-}
-
-impl WatchedEnv {
-    /// `id` with its default config and time limit.
-    ///
-    /// # Errors
-    /// The model cannot be loaded.
-    pub fn new(id: EnvId) -> anyhow::Result<Self> {
-        let env = id
-            .make()
-            .with_context(|| format!("cannot build {id} (did you run scripts/setup-mujoco.sh?)"))?;
-        let mut w = Self {
-            env,
-            last: [0; MJ_N_WARNING],
-            fresh: [0; MJ_N_WARNING],
-        };
-        w.last = w.counts();
-        Ok(w)
-    }
-
-    fn counts(&self) -> [i64; MJ_N_WARNING] {
-        let mut c = [0; MJ_N_WARNING];
-        for (i, w) in self
-            .env
-            .inner()
-            .simulation()
-            .data()
-            .warning()
-            .iter()
-            .take(MJ_N_WARNING)
-            .enumerate()
-        {
-            c[i] = i64::from(w.number);
-        }
-        c
-    }
-
-    /// Warnings counted since the last call, by index.
-    pub fn take_warnings(&mut self) -> [u64; MJ_N_WARNING] {
-        std::mem::take(&mut self.fresh)
-    }
-}
-
-impl Env for WatchedEnv {
-    fn observation_space(&self) -> &Space {
-        self.env.observation_space()
-    }
-    fn action_space(&self) -> &Space {
-        self.env.action_space()
-    }
-    fn reset(&mut self, seed: Option<u64>) -> red_core::Result<(Vec<f64>, Info)> {
-        let r = self.env.reset(seed)?;
-        // mj_resetData clears the counters.
-        self.last = self.counts();
-        Ok(r)
-    }
-    fn step(&mut self, action: &[f64]) -> red_core::Result<Step> {
-        let s = self.env.step(action)?;
-        let now = self.counts();
-        for i in 0..MJ_N_WARNING {
-            if now[i] > self.last[i] {
-                self.fresh[i] += (now[i] - self.last[i]) as u64;
-            }
-        }
-        self.last = now;
-        Ok(s)
-    }
-}
-
-fn describe_warnings(w: &[u64; MJ_N_WARNING]) -> String {
-    w.iter()
-        .enumerate()
-        .filter(|(_, n)| **n > 0)
-        .map(|(i, n)| format!("{n} x {}", MJ_WARNING_NAMES[i]))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
 /// How a call to [`run`] ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Outcome {
     /// Trained, evaluated, outputs written.
     Finished,
-    /// Stopped on request (Ctrl-C or `stop_after_iterations`) after saving a
-    /// checkpoint; `--resume` continues.
+    /// Stopped on request (the stop flag) after saving a checkpoint; [`run`]
+    /// with `resume` continues.
     Interrupted,
-}
-
-/// Options of one call to [`run`] that are not settings of the run.
-pub struct RunOptions {
-    /// Progress display (hidden in tests and parallel logs).
-    pub bar: ProgressBar,
-    /// Prefix of the status lines printed when the bar is hidden; `None`
-    /// prints none.
-    pub log_prefix: Option<String>,
-    /// Stop as Ctrl-C does after this many iterations in total (tests).
-    pub stop_after_iterations: Option<u64>,
 }
 
 /// One evaluation in `eval.json`.
@@ -592,82 +481,99 @@ pub struct EvalFile {
     pub demo_returns: Option<Vec<f64>>,
 }
 
+impl EvalFile {
+    /// A few lines for people: both evaluations, the expert's choice and
+    /// demonstrations, MuJoCo warnings, wall time, and where the run's
+    /// folder `dir` is.
+    pub fn summary(&self, dir: &Path) -> String {
+        let mut s = format!(
+            "{} {} seed {} ({} episodes, deterministic actions, true reward):\n",
+            self.env, self.method, self.seed, self.episodes
+        );
+        let f = &self.final_policy;
+        s.push_str(&format!(
+            "  final policy ({} env steps): {:.2} +- {:.2} (mean length {:.0})\n",
+            f.env_steps, f.mean, f.std, f.mean_length
+        ));
+        if let Some(b) = &self.best_checkpoint {
+            s.push_str(&format!(
+                "  best checkpoint by training true return ({} env steps): {:.2} +- {:.2}\n",
+                b.env_steps, b.mean, b.std
+            ));
+        }
+        if let Some(r) = &self.demo_returns {
+            s.push_str(&format!(
+                "  expert: {}; demonstrations written ({} trajectories, returns {})\n",
+                self.expert_choice.as_deref().unwrap_or("-"),
+                r.len(),
+                r.iter()
+                    .map(|x| format!("{x:.1}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        if self.mujoco_warnings > 0 {
+            s.push_str(&format!(
+                "  MuJoCo warnings during training: {}\n",
+                self.mujoco_warnings
+            ));
+        }
+        s.push_str(&format!(
+            "  wall time {:.0} s; outputs in {}\n",
+            self.wall_s,
+            dir.display()
+        ));
+        s
+    }
+}
+
 /// Reads the demonstration file and checks it fits `env`.
 ///
 /// # Errors
 /// An unreadable or invalid file, or one of another task.
-pub fn load_demos(path: &Path, env: EnvId) -> anyhow::Result<Demos> {
+pub fn load_demos(path: &Path, env: EnvId) -> Result<Demos> {
     let demos = Demos::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let probe = WatchedEnv::new(env)?;
+    let probe = WatchedEnv::new(env).with_context(|| format!("cannot build {env}"))?;
     let (od, ad) = (probe.observation_space().dim(), probe.action_space().dim());
+    let bad = |reason: String| Error::Input {
+        path: path.to_path_buf(),
+        reason,
+    };
     if demos.env_id != env.name() {
-        bail!(
-            "{} holds demonstrations of `{}`, not `{}`",
-            path.display(),
+        return Err(bad(format!(
+            "holds demonstrations of `{}`, not `{}`",
             demos.env_id,
             env.name()
-        );
+        )));
     }
     if demos.obs_dim != od || demos.act_dim != ad {
-        bail!(
-            "{} has observations of {} and actions of {} numbers; {} has {od} and {ad}",
-            path.display(),
+        return Err(bad(format!(
+            "has observations of {} and actions of {} numbers; {} has {od} and {ad}",
             demos.obs_dim,
             demos.act_dim,
             env.name()
-        );
+        )));
     }
     if demos.num_pairs() < 2 {
-        bail!("{} has fewer than 2 state-action pairs", path.display());
+        return Err(bad("has fewer than 2 state-action pairs".into()));
     }
     Ok(demos)
-}
-
-/// The files of a run folder.
-pub struct RunDir(pub PathBuf);
-
-impl RunDir {
-    /// `config.json`.
-    pub fn config(&self) -> PathBuf {
-        self.0.join("config.json")
-    }
-    /// `checkpoint.json`.
-    pub fn checkpoint(&self) -> PathBuf {
-        self.0.join("checkpoint.json")
-    }
-    /// `metrics.csv`.
-    pub fn metrics(&self) -> PathBuf {
-        self.0.join("metrics.csv")
-    }
-    /// `eval.json`.
-    pub fn eval(&self) -> PathBuf {
-        self.0.join("eval.json")
-    }
-    /// `policy.json` (final).
-    pub fn policy(&self) -> PathBuf {
-        self.0.join("policy.json")
-    }
-    /// `best_policy.json`.
-    pub fn best_policy(&self) -> PathBuf {
-        self.0.join("best_policy.json")
-    }
 }
 
 /// Reads a run folder's `config.json`.
 ///
 /// # Errors
 /// Missing, unreadable or invalid file.
-pub fn read_config(dir: &Path) -> anyhow::Result<RunConfig> {
-    let p = RunDir(dir.to_path_buf()).config();
-    let text = std::fs::read_to_string(&p).with_context(|| {
-        format!(
-            "reading {} (is {} a run folder?)",
-            p.display(),
-            dir.display()
-        )
+pub fn read_config(dir: &Path) -> Result<RunConfig> {
+    let p = dir.join("config.json");
+    let text = std::fs::read_to_string(&p).map_err(|e| Error::Input {
+        path: p.clone(),
+        reason: format!("cannot read it ({e}); is {} a run folder?", dir.display()),
     })?;
-    let cfg: RunConfig =
-        serde_json::from_str(&text).with_context(|| format!("parsing {}", p.display()))?;
+    let cfg: RunConfig = serde_json::from_str(&text).map_err(|e| Error::Input {
+        path: p.clone(),
+        reason: format!("parsing: {e}"),
+    })?;
     cfg.validate()
         .with_context(|| format!("checking {}", p.display()))?;
     Ok(cfg)
@@ -675,7 +581,7 @@ pub fn read_config(dir: &Path) -> anyhow::Result<RunConfig> {
 
 /// Reads a run folder's `eval.json`, if the run finished.
 pub fn read_eval(dir: &Path) -> Option<EvalFile> {
-    let text = std::fs::read_to_string(RunDir(dir.to_path_buf()).eval()).ok()?;
+    let text = std::fs::read_to_string(dir.join("eval.json")).ok()?;
     serde_json::from_str(&text).ok()
 }
 
@@ -708,11 +614,14 @@ fn metrics_row(m: &IterationMetrics, window: Option<f64>, warnings: u64, wall_s:
 
 /// Keeps the header and the rows of iterations up to `iteration` (the rows
 /// written after the checkpoint a run resumes from are dropped).
-fn truncate_metrics(path: &Path, iteration: u64) -> anyhow::Result<()> {
+fn truncate_metrics(path: &Path, iteration: u64) -> Result<()> {
     let mut kept = format!("{METRICS_HEADER}\n");
     if let Ok(f) = std::fs::File::open(path) {
         for line in std::io::BufReader::new(f).lines().skip(1) {
-            let line = line?;
+            let line = line.map_err(|source| Error::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
             let it: Option<u64> = line.split(',').next().and_then(|s| s.parse().ok());
             if it.is_some_and(|i| i <= iteration) {
                 kept.push_str(&line);
@@ -724,15 +633,7 @@ fn truncate_metrics(path: &Path, iteration: u64) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The progress bar style of a training run.
-pub fn bar_style() -> ProgressStyle {
-    ProgressStyle::with_template(
-        "{prefix:>22} {bar:28} {pos:>9}/{len} steps {elapsed_precise} (eta {eta}) {msg}",
-    )
-    .unwrap_or_else(|_| ProgressStyle::default_bar())
-}
-
-fn save_policy(path: &Path, policy: &GaussianPolicy) -> anyhow::Result<()> {
+fn save_policy(path: &Path, policy: &GaussianPolicy) -> Result<()> {
     write_atomic(path, policy.to_json()?.as_bytes())?;
     Ok(())
 }
@@ -744,7 +645,7 @@ fn fresh_state(
     demos: Option<&Demos>,
     obs_dim: usize,
     act_dim: usize,
-) -> anyhow::Result<RunState> {
+) -> Result<RunState> {
     let seeder = Seeder::new(cfg.seed);
     let pairs = demos.map(|d| d.pairs());
     let normalizer = match (&pairs, cfg.freeze_obs_norm_from_demo) {
@@ -758,7 +659,12 @@ fn fresh_state(
     let mut trainer = TrpoTrainer::new(cfg.trpo.clone(), obs_dim, act_dim, normalizer, cfg.seed)?;
     let reward = match (cfg.method, &pairs) {
         (Method::Expert | Method::Bc, _) => None,
-        (_, None) => bail!("method `{}` needs demonstrations", cfg.method.name()),
+        (_, None) => {
+            return Err(Error::InvalidConfig {
+                field: "demo".into(),
+                reason: format!("method `{}` needs demonstrations", cfg.method.name()),
+            });
+        }
         (Method::Red | Method::Ae, Some((es, ea))) => {
             let mut rng = seeder.rng(Stream::Estimator);
             let model = if cfg.method == Method::Red {
@@ -816,20 +722,23 @@ fn fresh_state(
     })
 }
 
-fn check_batch_finite(batch: &red_rl::rollout::RolloutBatch, step: u64) -> anyhow::Result<()> {
+fn check_batch_finite(batch: &red_rl::rollout::RolloutBatch, step: u64) -> Result<()> {
+    let non_finite = |what: String| {
+        Err(Error::NonFinite {
+            what: format!("{what} in the batch ending at env step {step}"),
+        })
+    };
     if let Some(i) = batch.observations.iter().position(|v| !v.is_finite()) {
-        bail!(
-            "non-finite observation (entry {i} of the batch) in the batch ending at env step {step}"
-        );
+        return non_finite(format!("observation (entry {i} of the batch)"));
     }
     if batch.boundary_observations.iter().any(|v| !v.is_finite()) {
-        bail!("non-finite observation at an episode end in the batch ending at env step {step}");
+        return non_finite("observation at an episode end".into());
     }
     if batch.true_rewards.iter().any(|v| !v.is_finite()) {
-        bail!("non-finite true reward in the batch ending at env step {step}");
+        return non_finite("true reward".into());
     }
     if batch.actions.iter().any(|v| !v.is_finite()) {
-        bail!("non-finite action in the batch ending at env step {step}");
+        return non_finite("action".into());
     }
     Ok(())
 }
@@ -839,6 +748,11 @@ fn check_batch_finite(batch: &red_rl::rollout::RolloutBatch, step: u64) -> anyho
 /// only supplies the step budget: a larger one trains on, one at or below
 /// the steps done ends the run there, with its evaluation).
 ///
+/// `stop` is checked before every TRPO iteration: once set, the run saves
+/// its checkpoint and returns [`Outcome::Interrupted`]. `progress` hears of
+/// the fitted reward, each iteration (env steps and the recent return),
+/// MuJoCo warnings, and the evaluation.
+///
 /// # Errors
 /// Bad settings or files, a failed fit, a non-finite quantity during
 /// training (the last good checkpoint is kept), an environment error.
@@ -846,48 +760,55 @@ pub fn run(
     dir: &Path,
     cfg: Option<RunConfig>,
     resume: bool,
-    opts: &RunOptions,
-) -> anyhow::Result<Outcome> {
-    let rd = RunDir(dir.to_path_buf());
-    let (cfg, state) = if resume {
+    stop: &AtomicBool,
+    progress: &mut dyn Progress,
+) -> Result<Outcome> {
+    let (rd, cfg, state) = if resume {
         let mut saved = read_config(dir)?;
+        let rd = RunDir::open(dir)?;
         if let Some(c) = &cfg
             && c.steps != saved.steps
         {
             saved.steps = c.steps;
-            write_atomic(
-                &rd.config(),
-                serde_json::to_string_pretty(&saved)?.as_bytes(),
-            )?;
+            rd.write_json("config.json", &saved)?;
         }
-        let state = if rd.checkpoint().is_file() {
-            let s: RunState = load_checkpoint(&rd.checkpoint(), CHECKPOINT_KIND)
+        let state = if rd.file("checkpoint.json").is_file() {
+            let s: RunState = load_checkpoint(&rd.file("checkpoint.json"), CHECKPOINT_KIND)
                 .with_context(|| format!("resuming {}", dir.display()))?;
             s.trainer.config().validate()?;
             Some(s)
         } else {
             None
         };
-        (saved, state)
+        (rd, saved, state)
     } else {
-        let cfg = cfg.context("no settings given for a new run")?;
+        let cfg = cfg.ok_or_else(|| Error::InvalidConfig {
+            field: "config".into(),
+            reason: "no settings given for a new run".into(),
+        })?;
         cfg.validate()?;
-        if rd.config().exists() {
-            bail!(
-                "{} already holds a run; continue it with --resume {} or choose another --name",
-                dir.display(),
-                dir.display()
-            );
+        if dir.join("config.json").exists() {
+            return Err(Error::Input {
+                path: dir.to_path_buf(),
+                reason: format!(
+                    "already holds a run; continue it with --resume {} or choose another --name",
+                    dir.display()
+                ),
+            });
         }
         if let (true, Some(p)) = (cfg.method.needs_demo(), &cfg.demo) {
             load_demos(p, cfg.env)?;
         }
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        write_atomic(&rd.config(), serde_json::to_string_pretty(&cfg)?.as_bytes())?;
-        (cfg, None)
+        std::fs::create_dir_all(dir).map_err(|source| Error::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+        let rd = RunDir::open(dir)?;
+        rd.write_json("config.json", &cfg)?;
+        (rd, cfg, None)
     };
     let session = Instant::now();
-    let mut env = WatchedEnv::new(cfg.env)?;
+    let mut env = WatchedEnv::new(cfg.env).with_context(|| format!("cannot build {}", cfg.env))?;
     let (od, ad) = (env.observation_space().dim(), env.action_space().dim());
     let demos = match &cfg.demo {
         Some(p) if cfg.method.needs_demo() => Some(load_demos(p, cfg.env)?),
@@ -897,7 +818,7 @@ pub fn run(
         return run_bc(&rd, &cfg, demos.as_ref(), od, ad, session);
     }
     if resume
-        && rd.eval().is_file()
+        && rd.file("eval.json").is_file()
         && state
             .as_ref()
             .is_some_and(|s| s.trainer.env_steps() >= cfg.steps)
@@ -909,7 +830,7 @@ pub fn run(
         Some(s) => s,
         None => {
             let s = fresh_state(&cfg, demos.as_ref(), od, ad)?;
-            save_checkpoint(&rd.checkpoint(), CHECKPOINT_KIND, &s)?;
+            save_checkpoint(&rd.file("checkpoint.json"), CHECKPOINT_KIND, &s)?;
             if let (Some(ImitationReward::Support(r)), Some(d)) = (&s.reward, &demos) {
                 let (es, ea) = d.pairs();
                 let on = r.rewards(es.view(), ea.view())?;
@@ -921,76 +842,73 @@ pub fn run(
                     on.mean().unwrap_or(f64::NAN),
                     on.iter().copied().fold(f64::INFINITY, f64::min)
                 );
-                if opts.bar.is_hidden() {
-                    if let Some(p) = &opts.log_prefix {
-                        eprintln!("{p}: {msg}");
-                    }
-                } else {
-                    opts.bar.println(msg);
-                }
+                progress.note(&msg);
             }
             s
         }
     };
-    truncate_metrics(&rd.metrics(), state.trainer.iteration())?;
+    truncate_metrics(&rd.file("metrics.csv"), state.trainer.iteration())?;
+    let metrics_path = rd.file("metrics.csv");
+    let io_error = |source| Error::Io {
+        path: metrics_path.clone(),
+        source,
+    };
     let mut metrics = std::io::BufWriter::new(
         std::fs::OpenOptions::new()
             .append(true)
-            .open(rd.metrics())
-            .with_context(|| format!("opening {}", rd.metrics().display()))?,
+            .open(&metrics_path)
+            .map_err(io_error)?,
     );
 
-    let bar = &opts.bar;
-    bar.set_length(cfg.steps);
-    bar.set_position(state.trainer.env_steps().min(cfg.steps));
+    progress.start(
+        &format!("{} {}", super::short_name(cfg.env), cfg.method.name()),
+        cfg.steps,
+        state.trainer.env_steps().min(cfg.steps),
+    );
     let wall_before = state.wall_s;
-    let log = |msg: String| {
-        if bar.is_hidden() {
-            if let Some(p) = &opts.log_prefix {
-                eprintln!("{p}: {msg}");
-            }
-        } else {
-            bar.println(msg);
-        }
-    };
     let save = |state: &mut RunState, metrics: &mut std::io::BufWriter<std::fs::File>| {
         state.wall_s = wall_before + session.elapsed().as_secs_f64();
-        metrics.flush()?;
-        save_checkpoint(&rd.checkpoint(), CHECKPOINT_KIND, &*state)?;
-        anyhow::Ok(())
+        metrics.flush().map_err(io_error)?;
+        save_checkpoint(&rd.file("checkpoint.json"), CHECKPOINT_KIND, &*state)?;
+        Ok::<(), Error>(())
     };
 
     while state.trainer.env_steps() < cfg.steps {
         let it = state.trainer.iteration();
-        if interrupt::requested() || opts.stop_after_iterations.is_some_and(|k| it >= k) {
+        if stop.load(Ordering::SeqCst) {
             save(&mut state, &mut metrics)?;
-            log(format!(
-                "stopped at env step {} (iteration {it}); checkpoint saved, continue with --resume {}",
+            progress.note(&format!(
+                "stopped at env step {} (iteration {it}); checkpoint saved in {}",
                 state.trainer.env_steps(),
                 dir.display()
             ));
+            progress.finish();
             return Ok(Outcome::Interrupted);
         }
         let batch = state.trainer.collect(&mut env).with_context(|| {
             format!(
                 "collecting the batch ending at env step {} (last good checkpoint kept: {})",
                 state.trainer.env_steps() + cfg.trpo.steps_per_batch as u64,
-                rd.checkpoint().display()
+                rd.file("checkpoint.json").display()
             )
         })?;
         let step = state.trainer.env_steps();
-        check_batch_finite(&batch, step)
-            .with_context(|| format!("last good checkpoint kept: {}", rd.checkpoint().display()))?;
+        check_batch_finite(&batch, step).with_context(|| {
+            format!(
+                "last good checkpoint kept: {}",
+                rd.file("checkpoint.json").display()
+            )
+        })?;
         let reward = state.reward.as_mut().map(|r| r as &mut dyn RewardModel);
         let m = state.trainer.update(&batch, reward).with_context(|| {
             format!(
                 "TRPO update at env step {step} (last good checkpoint kept: {})",
-                rd.checkpoint().display()
+                rd.file("checkpoint.json").display()
             )
         })?;
         let fresh = env.take_warnings();
         if fresh.iter().any(|&n| n > 0) {
-            log(format!(
+            progress.note(&format!(
                 "MuJoCo warnings in the batch ending at env step {step}: {} (the simulation was reset by MuJoCo; check the actions and the model)",
                 describe_warnings(&fresh)
             ));
@@ -1010,7 +928,7 @@ pub fn run(
             && !m.true_returns.is_empty()
             && state.best.as_ref().is_none_or(|b| w > b.mean_true_return)
         {
-            save_policy(&rd.best_policy(), state.trainer.policy())?;
+            save_policy(&rd.file("best_policy.json"), state.trainer.policy())?;
             state.best = Some(BestRecord {
                 mean_true_return: w,
                 env_steps: step,
@@ -1019,8 +937,9 @@ pub fn run(
         }
         let total_warnings: u64 = state.mujoco_warnings.iter().sum();
         let wall = wall_before + session.elapsed().as_secs_f64();
-        metrics.write_all(metrics_row(&m, window, total_warnings, wall).as_bytes())?;
-        bar.set_position(step.min(cfg.steps));
+        metrics
+            .write_all(metrics_row(&m, window, total_warnings, wall).as_bytes())
+            .map_err(io_error)?;
         let msg = format!(
             "return(last {}) {}{}",
             cfg.best_window,
@@ -1028,21 +947,21 @@ pub fn run(
             m.mean_imitation_reward
                 .map_or(String::new(), |r| format!(", imitation reward/step {r:.3}"))
         );
-        bar.set_message(msg.clone());
         if m.iteration.is_multiple_of(cfg.checkpoint_every) {
             save(&mut state, &mut metrics)?;
-            log(format!("env step {step}: {msg}"));
+            progress.note(&format!("env step {step}: {msg}"));
         }
+        progress.advance(step.min(cfg.steps), &msg);
     }
     save(&mut state, &mut metrics)?;
     drop(metrics);
 
     // Final policy and evaluations.
     let policy = state.trainer.policy().clone();
-    save_policy(&rd.policy(), &policy)?;
+    save_policy(&rd.file("policy.json"), &policy)?;
     let eval_seed = Seeder::new(cfg.seed).derive(Stream::Eval);
     let mut eval_env = WatchedEnv::new(cfg.env)?;
-    bar.set_message("evaluating");
+    progress.advance(state.trainer.env_steps().min(cfg.steps), "evaluating");
     let final_report = evaluate(
         &mut eval_env,
         &policy,
@@ -1053,8 +972,8 @@ pub fn run(
     let steps_done = state.trainer.env_steps();
     let final_eval = EvalSummary::new("final", steps_done, &final_report);
     let (best_eval, best_policy) = match &state.best {
-        Some(b) if rd.best_policy().is_file() => {
-            let bp = GaussianPolicy::load(&rd.best_policy())?;
+        Some(b) if rd.file("best_policy.json").is_file() => {
+            let bp = GaussianPolicy::load(&rd.file("best_policy.json"))?;
             let r = evaluate(
                 &mut eval_env,
                 &bp,
@@ -1125,10 +1044,8 @@ pub fn run(
         eval_file.demo_returns = demos.returns();
     }
     eval_file.wall_s = wall_before + session.elapsed().as_secs_f64();
-    write_atomic(
-        &rd.eval(),
-        serde_json::to_string_pretty(&eval_file)?.as_bytes(),
-    )?;
+    rd.write_json("eval.json", &eval_file)?;
+    progress.finish();
     Ok(Outcome::Finished)
 }
 
@@ -1140,8 +1057,11 @@ fn run_bc(
     od: usize,
     ad: usize,
     session: Instant,
-) -> anyhow::Result<Outcome> {
-    let demos = demos.context("bc needs demonstrations")?;
+) -> Result<Outcome> {
+    let demos = demos.ok_or_else(|| Error::InvalidConfig {
+        field: "demo".into(),
+        reason: "bc needs demonstrations".into(),
+    })?;
     let (es, ea) = demos.pairs();
     let seeder = Seeder::new(cfg.seed);
     let normalizer = if cfg.freeze_obs_norm_from_demo {
@@ -1175,8 +1095,8 @@ fn run_bc(
     for (i, l) in losses.iter().enumerate() {
         csv.push_str(&format!("{},{l}\n", i + 1));
     }
-    write_atomic(&rd.0.join("bc_losses.csv"), csv.as_bytes())?;
-    save_policy(&rd.policy(), &policy)?;
+    rd.write("bc_losses.csv", csv.as_bytes())?;
+    save_policy(&rd.file("policy.json"), &policy)?;
     let mut env = WatchedEnv::new(cfg.env)?;
     let report = evaluate(
         &mut env,
@@ -1201,10 +1121,7 @@ fn run_bc(
         expert_choice: None,
         demo_returns: None,
     };
-    write_atomic(
-        &rd.eval(),
-        serde_json::to_string_pretty(&eval_file)?.as_bytes(),
-    )?;
+    rd.write_json("eval.json", &eval_file)?;
     Ok(Outcome::Finished)
 }
 
@@ -1214,18 +1131,18 @@ fn run_bc(
 ///
 /// # Errors
 /// An environment or policy error.
-pub fn record_demos(
-    id: EnvId,
-    policy: &GaussianPolicy,
-    n: usize,
-    seed: u64,
-) -> anyhow::Result<Demos> {
+pub fn record_demos(id: EnvId, policy: &GaussianPolicy, n: usize, seed: u64) -> Result<Demos> {
     let mut env = WatchedEnv::new(id)?;
     let (low, high) = match env.action_space() {
         Space::Box(b) => (b.low.clone(), b.high.clone()),
-        Space::Discrete(_) => bail!("{id} has a discrete action space"),
+        Space::Discrete(_) => {
+            return Err(Error::InvalidConfig {
+                field: "env".into(),
+                reason: format!("{id} has a discrete action space"),
+            });
+        }
     };
-    let sim = env.env.inner().simulation();
+    let sim = env.inner().inner().simulation();
     let hz = 1.0 / sim.dt();
     let mut demos = Demos::new(
         id.name(),
@@ -1266,6 +1183,87 @@ pub fn record_demos(
     Ok(demos)
 }
 
+/// The evaluation of a policy file, as `red-cli mujoco eval --out` writes
+/// it.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct PolicyEval {
+    /// The policy file.
+    pub policy: String,
+    /// The task (`Hopper-v5`, ...).
+    pub env: String,
+    /// Episodes.
+    pub episodes: usize,
+    /// Seed of the episodes' resets.
+    pub seed: u64,
+    /// `deterministic` (the policy's mean) or `sampled` actions.
+    pub actions: String,
+    /// Mean true return.
+    pub mean: f64,
+    /// Standard deviation (population) of the true return.
+    pub std: f64,
+    /// Every episode's true return.
+    pub returns: Vec<f64>,
+    /// Every episode's length.
+    pub lengths: Vec<usize>,
+    /// The environment's info entries summed over an episode, averaged over
+    /// the episodes (reward terms, velocities, positions).
+    pub info_totals: Vec<(String, f64)>,
+}
+
+impl PolicyEval {
+    /// The evaluation `report` of the policy file `policy` on `id`.
+    pub fn new(policy: &Path, id: EnvId, seed: u64, sampled: bool, report: &EvalReport) -> Self {
+        Self {
+            policy: policy.display().to_string(),
+            env: id.name().into(),
+            episodes: report.returns.len(),
+            seed,
+            actions: if sampled { "sampled" } else { "deterministic" }.into(),
+            mean: report.mean_return(),
+            std: report.std_return(),
+            returns: report.returns.clone(),
+            lengths: report.lengths.clone(),
+            info_totals: report.info_totals.clone(),
+        }
+    }
+
+    /// A few lines for people: the mean return, then where it comes from:
+    /// each reward term of the task summed over an episode, and the other
+    /// info entries (velocities, positions) as means per step.
+    pub fn summary(&self) -> String {
+        let mean_length =
+            self.lengths.iter().sum::<usize>() as f64 / self.lengths.len().max(1) as f64;
+        let mut s = format!(
+            "{} on {}: {:.2} +- {:.2} over {} episodes ({} actions, true reward; mean length {:.0})\n",
+            self.policy,
+            self.env,
+            self.mean,
+            self.std,
+            self.returns.len(),
+            self.actions,
+            mean_length
+        );
+        let steps = mean_length.max(1.0);
+        let (terms, other): (Vec<_>, Vec<_>) = self
+            .info_totals
+            .iter()
+            .partition(|(k, _)| k.starts_with("reward_"));
+        let show = |v: &[&(String, f64)], scale: f64| {
+            v.iter()
+                .map(|(k, x)| format!("{k} {:.2}", x / scale))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        if !terms.is_empty() {
+            s.push_str(&format!("  per episode: {}\n", show(&terms, 1.0)));
+        }
+        if !other.is_empty() {
+            s.push_str(&format!("  per step: {}\n", show(&other, steps)));
+        }
+        s
+    }
+}
+
 /// Runs the policy file `path` on `id` for `episodes` episodes with the
 /// true reward: deterministic (mean) actions, or actions sampled from the
 /// policy's Gaussian when `sampled`.
@@ -1278,8 +1276,13 @@ pub fn evaluate_file(
     episodes: usize,
     seed: u64,
     sampled: bool,
-) -> anyhow::Result<(EvalReport, u64)> {
-    ensure!(episodes > 0, "--episodes must be at least 1");
+) -> Result<(EvalReport, u64)> {
+    if episodes == 0 {
+        return Err(Error::InvalidConfig {
+            field: "episodes".into(),
+            reason: "must be at least 1".into(),
+        });
+    }
     let policy =
         GaussianPolicy::load(path).with_context(|| format!("loading {}", path.display()))?;
     let mut env = WatchedEnv::new(id)?;
@@ -1300,24 +1303,112 @@ pub fn evaluate_file(
 mod tests {
     use super::*;
 
+    /// Counts what a run tells its observer.
+    #[derive(Default)]
+    struct Recorder {
+        starts: usize,
+        advances: Vec<u64>,
+        notes: Vec<String>,
+        finishes: usize,
+    }
+
+    impl Progress for Recorder {
+        fn note(&mut self, text: &str) {
+            self.notes.push(text.into());
+        }
+        fn start(&mut self, _label: &str, _total: u64, _done: u64) {
+            self.starts += 1;
+        }
+        fn advance(&mut self, done: u64, _message: &str) {
+            self.advances.push(done);
+        }
+        fn finish(&mut self) {
+            self.finishes += 1;
+        }
+    }
+
     #[test]
-    fn mujoco_warnings_are_counted_and_named() {
-        let mut env = WatchedEnv::new(EnvId::Hopper).unwrap();
-        env.reset(Some(0)).unwrap();
-        env.step(&[0.0; 3]).unwrap();
-        assert_eq!(env.take_warnings(), [0; MJ_N_WARNING]);
-        // A velocity far beyond anything physical: MuJoCo warns and resets.
-        env.env
-            .inner_mut()
-            .set_state(&[0.0, 1.25, 0.0, 0.0, 0.0, 0.0], &[1e11; 6])
+    fn a_stopped_run_resumes_to_the_numbers_of_an_uninterrupted_one() {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut cfg = RunConfig::for_task(EnvId::Reacher, Method::Expert);
+        cfg.trpo.steps_per_batch = 128;
+        cfg.steps = 256;
+        cfg.eval_episodes = 1;
+        cfg.demo_trajectories = 1;
+        let never = AtomicBool::new(false);
+        let full = tmp.path().join("full");
+        let mut p = Recorder::default();
+        let out = run(&full, Some(cfg.clone()), false, &never, &mut p).unwrap();
+        assert_eq!(out, Outcome::Finished);
+        assert_eq!((p.starts, p.finishes), (1, 1));
+        assert_eq!(p.advances, [128, 256, 256]);
+        assert!(full.join("demos.json").is_file());
+
+        let split = tmp.path().join("split");
+        let now = AtomicBool::new(true);
+        let out = run(&split, Some(cfg), false, &now, &mut Recorder::default()).unwrap();
+        assert_eq!(out, Outcome::Interrupted);
+        assert!(!split.join("eval.json").exists());
+        let out = run(&split, None, true, &never, &mut Recorder::default()).unwrap();
+        assert_eq!(out, Outcome::Finished);
+        let rows = |d: &Path| -> Vec<String> {
+            std::fs::read_to_string(d.join("metrics.csv"))
+                .unwrap()
+                .lines()
+                .map(|l| l.rsplit_once(',').unwrap().0.to_string())
+                .collect()
+        };
+        assert_eq!(rows(&full), rows(&split));
+        assert_eq!(
+            read_eval(&full).unwrap().final_policy.returns,
+            read_eval(&split).unwrap().final_policy.returns
+        );
+        assert!(
+            read_eval(&full)
+                .unwrap()
+                .summary(&full)
+                .contains("final policy (256 env steps)")
+        );
+    }
+
+    #[test]
+    fn a_new_run_refuses_a_folder_that_holds_one_and_overrides_are_merged() {
+        let tmp = tempfile::tempdir().unwrap();
+        let base = RunConfig::for_task(EnvId::Hopper, Method::Red);
+        let src = tmp.path().join("over.json");
+        let c = base
+            .clone()
+            .with_overrides(r#"{"trpo": {"steps_per_batch": 256}}"#, &src)
             .unwrap();
-        env.step(&[0.0; 3]).unwrap();
-        let w = env.take_warnings();
-        assert!(w.iter().sum::<u64>() > 0, "{w:?}");
-        let text = describe_warnings(&w);
-        assert!(text.contains("mjWARN_BAD"), "{text}");
-        // Counted once: the next call starts from zero.
-        assert_eq!(env.take_warnings(), [0; MJ_N_WARNING]);
+        assert_eq!(c.trpo.steps_per_batch, 256);
+        assert_eq!(c.trpo.max_kl, base.trpo.max_kl);
+        let e = base
+            .clone()
+            .with_overrides(r#"{"method": "gail"}"#, &src)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("another task or method"), "{e}");
+        let e = base
+            .with_overrides(r#"{"trpoo": {}}"#, &src)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("trpoo"), "{e}");
+
+        let dir = tmp.path().join("r");
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("config.json"), "{}").unwrap();
+        let mut cfg = RunConfig::for_task(EnvId::Reacher, Method::Expert);
+        cfg.steps = 128;
+        let e = run(
+            &dir,
+            Some(cfg),
+            false,
+            &AtomicBool::new(false),
+            &mut crate::Silent,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("already holds a run"), "{e}");
     }
 
     #[test]

@@ -1,67 +1,145 @@
-//! `red-cli mujoco table`: the grid of paper Table 1 (tasks x methods x
-//! seeds), run in parallel, then a markdown and CSV table with both
-//! protocols (final policy; best checkpoint by training true return) and a
-//! learning-curve PNG per task (paper Fig. 4).
+//! The grid of paper Table 1 (tasks x methods x seeds), run in parallel,
+//! then a markdown and CSV table with both protocols (final policy; best
+//! checkpoint by training true return) and a learning-curve PNG per task
+//! (paper Fig. 4).
 //!
-//! Each cell is a run folder `<out-dir>/<name>/runs/<task>-<method>-s<seed>/`
-//! of `red-cli mujoco train`; a finished run is reused, an interrupted one
-//! resumed, so the command can be rerun until the grid is complete. The
-//! table is built from whatever runs have finished and says which cells are
-//! missing.
+//! Each cell is a run folder `<out_dir>/<name>/runs/<task>-<method>-s<seed>/`
+//! of [`run::run`]; a finished run is reused, an interrupted one resumed, so
+//! the grid can be rerun until it is complete. The table is built from
+//! whatever runs have finished and says which cells are missing.
 
 use std::collections::{BTreeMap, VecDeque};
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 
-use anyhow::Context;
-use clap::Args;
-use indicatif::{MultiProgress, ProgressBar};
 use red_mujoco::EnvId;
+use serde::{Deserialize, Serialize};
 
-use crate::interrupt;
-use crate::mujoco::{default_demo, expert_dir, short_name};
-use crate::mujoco_run::{self, EvalFile, Method, Outcome, RunConfig, RunOptions};
-use red_experiments::plot::{Panel, Series, draw_panels, mean_std};
+use super::run::{self, EvalFile, Outcome, RunConfig};
+use super::{Method, default_demo, expert_dir, short_name};
+use crate::plot::{Panel, Series, draw_panels, mean_std};
+use crate::{Error, Progress, Result};
 
-/// Arguments of `red-cli mujoco table`.
-#[derive(Debug, Args)]
-pub struct TableArgs {
-    /// Tasks, comma-separated (default: all five).
-    #[arg(long, value_delimiter = ',')]
-    envs: Vec<String>,
-    /// Methods, comma-separated (default: red, ae, gail, gmmil, bc).
-    #[arg(long, value_delimiter = ',', value_enum)]
-    methods: Vec<Method>,
-    /// Seeds, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "0")]
-    seeds: Vec<u64>,
-    /// Environment steps of each TRPO run (the release's README example:
-    /// 2,000,000; the paper: 5,000,000).
-    #[arg(long, default_value_t = 2_000_000)]
-    steps: u64,
-    /// Name of the grid: outputs go to `<out-dir>/<name>/`.
-    #[arg(long, default_value = "mujoco-table")]
-    name: String,
-    /// Folder of the runs.
-    #[arg(long, default_value = "runs")]
-    out_dir: PathBuf,
-    /// Folder holding `expert-<task>/` (demos and expert evaluation)
-    /// (default: `--out-dir`).
-    #[arg(long)]
-    experts_dir: Option<PathBuf>,
-    /// Runs at once (default: the number of cores).
-    #[arg(long)]
-    jobs: Option<usize>,
-    /// Evaluation episodes per run and protocol.
-    #[arg(long, default_value_t = 50)]
-    eval_episodes: usize,
-    /// TRPO iterations between checkpoints.
-    #[arg(long, default_value_t = 50)]
-    checkpoint_every: u64,
-    /// Only build the table and plots from the runs already finished.
-    #[arg(long)]
-    report_only: bool,
+/// The grid: which runs, their budget, and where they go.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TableConfig {
+    /// Tasks. Default: all five ([`EnvId::ALL`]).
+    pub envs: Vec<EnvId>,
+    /// Methods. Default: red, ae, gail, gmmil, bc ([`Method::TABLE`]); the
+    /// experts' row comes from expert runs, so `expert` is refused.
+    pub methods: Vec<Method>,
+    /// Seeds. Default: `[0]`.
+    pub seeds: Vec<u64>,
+    /// Environment steps of each TRPO run. Default 2,000,000 (the
+    /// release's README example; the paper: 5,000,000).
+    pub steps: u64,
+    /// Name of the grid: outputs go to `<out_dir>/<name>/`. Default
+    /// `mujoco-table`.
+    pub name: String,
+    /// Folder of the runs. Default `runs`.
+    pub out_dir: PathBuf,
+    /// Folder holding `expert-<task>/` (demos and expert evaluation).
+    /// Default: `out_dir`.
+    pub experts_dir: Option<PathBuf>,
+    /// Runs at once. Default: the number of cores.
+    pub jobs: Option<usize>,
+    /// Evaluation episodes per run and protocol. Default 50 (the paper).
+    pub eval_episodes: usize,
+    /// TRPO iterations between checkpoints. Default 50.
+    pub checkpoint_every: u64,
+}
+
+impl Default for TableConfig {
+    fn default() -> Self {
+        Self {
+            envs: EnvId::ALL.to_vec(),
+            methods: Method::TABLE.to_vec(),
+            seeds: vec![0],
+            steps: 2_000_000,
+            name: "mujoco-table".into(),
+            out_dir: PathBuf::from("runs"),
+            experts_dir: None,
+            jobs: None,
+            eval_episodes: 50,
+            checkpoint_every: 50,
+        }
+    }
+}
+
+impl TableConfig {
+    /// Checks every field.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] naming the first bad field.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |field: &str, reason: &str| {
+            Err(Error::InvalidConfig {
+                field: field.into(),
+                reason: reason.into(),
+            })
+        };
+        if self.methods.contains(&Method::Expert) {
+            return bad(
+                "methods",
+                "the experts' row comes from `red-cli mujoco expert` runs; leave `expert` out of --methods",
+            );
+        }
+        if self.seeds.is_empty() {
+            return bad("seeds", "needs at least one seed");
+        }
+        if self.envs.is_empty() || self.methods.is_empty() {
+            return bad("envs", "needs at least one task and one method");
+        }
+        crate::run_dir::check_name(&self.name)?;
+        Ok(())
+    }
+
+    /// The grid's folder: `<out_dir>/<name>`.
+    pub fn root(&self) -> PathBuf {
+        self.out_dir.join(&self.name)
+    }
+
+    /// Where the experts are.
+    pub fn experts_dir(&self) -> &Path {
+        self.experts_dir.as_deref().unwrap_or(&self.out_dir)
+    }
+
+    /// The run folder of one cell.
+    pub fn cell_dir(&self, env: EnvId, method: Method, seed: u64) -> PathBuf {
+        self.root()
+            .join("runs")
+            .join(format!("{}-{}-s{seed}", short_name(env), method.name()))
+    }
+}
+
+/// What the grid tells its caller while its cells run in parallel.
+pub trait GridProgress: Sync {
+    /// A line about the grid (a cell finished, failed or skipped).
+    fn note(&self, text: &str);
+    /// The observer of the cell `label` (`hopper red s0`), used by the one
+    /// worker thread that runs it and dropped when the cell ends.
+    fn cell(&self, label: &str) -> Box<dyn Progress + '_>;
+}
+
+/// A [`GridProgress`] that ignores everything.
+impl GridProgress for crate::Silent {
+    fn note(&self, _text: &str) {}
+    fn cell(&self, _label: &str) -> Box<dyn Progress + '_> {
+        Box::new(crate::Silent)
+    }
+}
+
+/// How [`run_grid`] ended.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct GridOutcome {
+    /// Cells that failed: `<run folder>: <error>`.
+    pub failures: Vec<String>,
+    /// Whether the stop flag ended the grid early (the running cells saved
+    /// checkpoints; running the grid again continues).
+    pub interrupted: bool,
 }
 
 struct Job {
@@ -71,149 +149,98 @@ struct Job {
     dir: PathBuf,
 }
 
-/// Runs `red-cli mujoco table`.
-pub fn run(args: TableArgs) -> anyhow::Result<()> {
-    let envs: Vec<EnvId> = if args.envs.is_empty() {
-        EnvId::ALL.to_vec()
-    } else {
-        args.envs
-            .iter()
-            .map(|s| s.parse::<EnvId>())
-            .collect::<Result<_, _>>()?
-    };
-    let methods: Vec<Method> = if args.methods.is_empty() {
-        vec![
-            Method::Red,
-            Method::Ae,
-            Method::Gail,
-            Method::Gmmil,
-            Method::Bc,
-        ]
-    } else {
-        args.methods.clone()
-    };
-    anyhow::ensure!(
-        !methods.contains(&Method::Expert),
-        "the experts' row comes from `red-cli mujoco expert` runs; leave `expert` out of --methods"
-    );
-    anyhow::ensure!(!args.seeds.is_empty(), "--seeds needs at least one seed");
-    let experts_dir = args.experts_dir.clone().unwrap_or(args.out_dir.clone());
-    let root = args.out_dir.join(&args.name);
-    std::fs::create_dir_all(root.join("runs"))
-        .with_context(|| format!("creating {}", root.display()))?;
-
+/// Runs every cell of the grid whose task has demonstrations, `jobs` at a
+/// time; finished cells are kept, interrupted ones resumed.
+///
+/// # Errors
+/// A bad config or a grid folder that cannot be created; the failures of
+/// single cells are in [`GridOutcome::failures`] instead.
+pub fn run_grid(
+    cfg: &TableConfig,
+    stop: &AtomicBool,
+    progress: &dyn GridProgress,
+) -> Result<GridOutcome> {
+    cfg.validate()?;
+    let root = cfg.root();
+    let runs = root.join("runs");
+    std::fs::create_dir_all(&runs).map_err(|source| Error::Io { path: runs, source })?;
     let mut jobs = VecDeque::new();
-    for &env in &envs {
-        let demo = default_demo(&experts_dir, env);
+    for &env in &cfg.envs {
+        let demo = default_demo(cfg.experts_dir(), env);
         if !demo.is_file() {
-            eprintln!(
+            progress.note(&format!(
                 "{}: no demonstrations at {} (run `red-cli mujoco expert --env {}` first); skipped",
                 env,
                 demo.display(),
                 short_name(env)
-            );
+            ));
             continue;
         }
-        for &method in &methods {
-            for &seed in &args.seeds {
-                let dir = root.join("runs").join(format!(
-                    "{}-{}-s{seed}",
-                    short_name(env),
-                    method.name()
-                ));
+        for &method in &cfg.methods {
+            for &seed in &cfg.seeds {
                 jobs.push_back(Job {
                     env,
                     method,
                     seed,
-                    dir,
+                    dir: cfg.cell_dir(env, method, seed),
                 });
             }
         }
     }
-
-    let started = std::time::Instant::now();
-    if !args.report_only {
-        interrupt::install();
-        let jobs_n = args
-            .jobs
-            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-            .max(1);
-        let total = jobs.len();
-        let queue = Mutex::new(jobs);
-        let failures = Mutex::new(Vec::<String>::new());
-        let multi = MultiProgress::new();
-        eprintln!("{total} runs, {jobs_n} at a time, into {}", root.display());
-        std::thread::scope(|scope| {
-            for _ in 0..jobs_n {
-                scope.spawn(|| {
-                    loop {
-                        if interrupt::requested() {
-                            break;
-                        }
-                        let job = match queue.lock() {
-                            Ok(mut q) => q.pop_front(),
-                            Err(_) => None,
-                        };
-                        let Some(job) = job else { break };
-                        if let Err(e) = run_job(&job, &args, &experts_dir, &multi) {
-                            let msg = format!("{}: {e:#}", job.dir.display());
-                            say(&multi, format!("run failed: {msg}"));
-                            if let Ok(mut f) = failures.lock() {
-                                f.push(msg);
-                            }
+    let jobs_n = cfg
+        .jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    progress.note(&format!(
+        "{} runs, {jobs_n} at a time, into {}",
+        jobs.len(),
+        root.display()
+    ));
+    let queue = Mutex::new(jobs);
+    let failures = Mutex::new(Vec::<String>::new());
+    std::thread::scope(|scope| {
+        for _ in 0..jobs_n {
+            scope.spawn(|| {
+                loop {
+                    if stop.load(Ordering::SeqCst) {
+                        break;
+                    }
+                    let job = match queue.lock() {
+                        Ok(mut q) => q.pop_front(),
+                        Err(_) => None,
+                    };
+                    let Some(job) = job else { break };
+                    if let Err(e) = run_job(&job, cfg, stop, progress) {
+                        let msg = format!("{}: {e}", job.dir.display());
+                        progress.note(&format!("run failed: {msg}"));
+                        if let Ok(mut f) = failures.lock() {
+                            f.push(msg);
                         }
                     }
-                });
-            }
-        });
-        let failures = failures.into_inner().unwrap_or_default();
-        for f in &failures {
-            eprintln!("failed: {f}");
+                }
+            });
         }
-        if interrupt::requested() {
-            eprintln!(
-                "interrupted: the runs saved checkpoints; rerun the same command to continue"
-            );
-        }
-    }
-    let (md, csv) = report(&root, &envs, &methods, &args.seeds, &experts_dir, &args)?;
-    red_core::checkpoint::write_atomic(&root.join("table.md"), md.as_bytes())?;
-    red_core::checkpoint::write_atomic(&root.join("table.csv"), csv.as_bytes())?;
-    println!("{md}");
-    println!(
-        "({:.0} s; table, CSV and curves in {})",
-        started.elapsed().as_secs_f64(),
-        root.display()
-    );
-    Ok(())
-}
-
-/// A line above the bars, or on stderr when they are hidden (logs).
-fn say(multi: &MultiProgress, line: String) {
-    if multi.is_hidden() {
-        eprintln!("{line}");
-    } else {
-        let _ = multi.println(line);
-    }
+    });
+    Ok(GridOutcome {
+        failures: failures.into_inner().unwrap_or_default(),
+        interrupted: stop.load(Ordering::SeqCst),
+    })
 }
 
 fn run_job(
     job: &Job,
-    args: &TableArgs,
-    experts_dir: &Path,
-    multi: &MultiProgress,
-) -> anyhow::Result<()> {
-    if let Some(e) = mujoco_run::read_eval(&job.dir) {
-        let cfg = mujoco_run::read_config(&job.dir)?;
-        if cfg.method == Method::Bc || cfg.steps >= args.steps {
-            say(
-                multi,
-                format!(
-                    "{}: finished earlier (final {:.1})",
-                    job.dir.display(),
-                    e.final_policy.mean
-                ),
-            );
+    cfg: &TableConfig,
+    stop: &AtomicBool,
+    progress: &dyn GridProgress,
+) -> Result<()> {
+    if let Some(e) = run::read_eval(&job.dir) {
+        let c = run::read_config(&job.dir)?;
+        if c.method == Method::Bc || c.steps >= cfg.steps {
+            progress.note(&format!(
+                "{}: finished earlier (final {:.1})",
+                job.dir.display(),
+                e.final_policy.mean
+            ));
             return Ok(());
         }
     }
@@ -223,55 +250,70 @@ fn run_job(
         job.method.name(),
         job.seed
     );
-    let bar = multi.add(ProgressBar::new(args.steps));
-    bar.set_style(mujoco_run::bar_style());
-    bar.set_prefix(label.clone());
-    let opts = RunOptions {
-        bar: bar.clone(),
-        log_prefix: Some(label),
-        stop_after_iterations: None,
-    };
     let resume = job.dir.join("config.json").is_file();
-    let cfg = if resume {
-        let mut c = mujoco_run::read_config(&job.dir)?;
-        c.steps = c.steps.max(args.steps);
+    let run_cfg = if resume {
+        let mut c = run::read_config(&job.dir)?;
+        c.steps = c.steps.max(cfg.steps);
         c
     } else {
         let mut c = RunConfig::for_task(job.env, job.method);
         c.seed = job.seed;
-        c.steps = args.steps;
-        c.eval_episodes = args.eval_episodes;
-        c.checkpoint_every = args.checkpoint_every;
-        c.demo = Some(default_demo(experts_dir, job.env));
+        c.steps = cfg.steps;
+        c.eval_episodes = cfg.eval_episodes;
+        c.checkpoint_every = cfg.checkpoint_every;
+        c.demo = Some(default_demo(cfg.experts_dir(), job.env));
         c
     };
-    let outcome = mujoco_run::run(&job.dir, Some(cfg), resume, &opts);
-    bar.finish_and_clear();
-    multi.remove(&bar);
-    match outcome? {
-        Outcome::Finished => {
-            if let Some(e) = mujoco_run::read_eval(&job.dir) {
-                say(
-                    multi,
-                    format!(
-                        "{}: final {:.1} +- {:.1}{} ({:.0} s)",
-                        job.dir.display(),
-                        e.final_policy.mean,
-                        e.final_policy.std,
-                        e.best_checkpoint
-                            .as_ref()
-                            .map_or(String::new(), |b| format!(
-                                ", best checkpoint {:.1} +- {:.1}",
-                                b.mean, b.std
-                            )),
-                        e.wall_s
-                    ),
-                );
-            }
-        }
-        Outcome::Interrupted => {}
+    let outcome = {
+        let mut cell = progress.cell(&label);
+        run::run(&job.dir, Some(run_cfg), resume, stop, &mut *cell)
+    };
+    if outcome? == Outcome::Finished
+        && let Some(e) = run::read_eval(&job.dir)
+    {
+        progress.note(&format!(
+            "{}: final {:.1} +- {:.1}{} ({:.0} s)",
+            job.dir.display(),
+            e.final_policy.mean,
+            e.final_policy.std,
+            e.best_checkpoint
+                .as_ref()
+                .map_or(String::new(), |b| format!(
+                    ", best checkpoint {:.1} +- {:.1}",
+                    b.mean, b.std
+                )),
+            e.wall_s
+        ));
     }
     Ok(())
+}
+
+/// The grid's table: markdown (both protocols, then the learning curves'
+/// files) and CSV, as written to `table.md` and `table.csv`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TableReport {
+    /// `table.md`.
+    pub markdown: String,
+    /// `table.csv`.
+    pub csv: String,
+}
+
+/// Builds the table and the learning-curve PNGs from the runs that have
+/// finished, and writes `table.md`, `table.csv` and `curve-<task>.png` into
+/// the grid's folder.
+///
+/// # Errors
+/// A file that cannot be written or a picture that cannot be drawn.
+pub fn write_report(cfg: &TableConfig) -> Result<TableReport> {
+    let root = cfg.root();
+    std::fs::create_dir_all(&root).map_err(|source| Error::Io {
+        path: root.clone(),
+        source,
+    })?;
+    let (markdown, csv) = report(&root, cfg)?;
+    red_core::checkpoint::write_atomic(&root.join("table.md"), markdown.as_bytes())?;
+    red_core::checkpoint::write_atomic(&root.join("table.csv"), csv.as_bytes())?;
+    Ok(TableReport { markdown, csv })
 }
 
 /// Pooled mean and std over every evaluation episode of the seeds.
@@ -338,7 +380,7 @@ fn read_curve(dir: &Path) -> Vec<(u64, f64)> {
     for line in std::io::BufReader::new(f)
         .lines()
         .skip(1)
-        .map_while(Result::ok)
+        .map_while(std::result::Result::ok)
     {
         let cols: Vec<&str> = line.split(',').collect();
         if cols.len() > 4
@@ -350,14 +392,9 @@ fn read_curve(dir: &Path) -> Vec<(u64, f64)> {
     out
 }
 
-fn report(
-    root: &Path,
-    envs: &[EnvId],
-    methods: &[Method],
-    seeds: &[u64],
-    experts_dir: &Path,
-    args: &TableArgs,
-) -> anyhow::Result<(String, String)> {
+fn report(root: &Path, cfg: &TableConfig) -> Result<(String, String)> {
+    let (envs, methods, seeds) = (&cfg.envs, &cfg.methods, &cfg.seeds);
+    let experts_dir = cfg.experts_dir();
     let mut evals: BTreeMap<(usize, usize), Vec<EvalFile>> = BTreeMap::new();
     for (ei, &env) in envs.iter().enumerate() {
         for (mi, &m) in methods.iter().enumerate() {
@@ -365,7 +402,7 @@ fn report(
                 let dir =
                     root.join("runs")
                         .join(format!("{}-{}-s{seed}", short_name(env), m.name()));
-                if let Some(e) = mujoco_run::read_eval(&dir) {
+                if let Some(e) = run::read_eval(&dir) {
                     evals.entry((ei, mi)).or_default().push(e);
                 }
             }
@@ -374,7 +411,7 @@ fn report(
     let experts: Vec<Option<(EvalFile, f64, f64)>> = envs
         .iter()
         .map(|&env| {
-            let e = mujoco_run::read_eval(&expert_dir(experts_dir, env))?;
+            let e = run::read_eval(&expert_dir(experts_dir, env))?;
             let chosen = match e.expert_choice.as_deref() {
                 Some("best checkpoint") => e.best_checkpoint.clone()?,
                 _ => e.final_policy.clone(),
@@ -386,7 +423,7 @@ fn report(
     let mut md = String::new();
     md.push_str(&format!(
         "Grid `{}`: TRPO budget {} env steps per run; seeds {:?}; each cell is the mean ± std of the true return over every evaluation episode of its seeds ({} per seed, deterministic actions).\n\n",
-        args.name, args.steps, seeds, args.eval_episodes
+        cfg.name, cfg.steps, seeds, cfg.eval_episodes
     ));
     let header = |md: &mut String| {
         md.push_str("| method |");
