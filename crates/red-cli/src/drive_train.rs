@@ -594,7 +594,7 @@ fn stack(rows: &[(Vec<f64>, Vec<f64>)]) -> (Array2<f64>, Array2<f64>) {
 fn check(run: &RunConfig, st: &mut MethodState) -> anyhow::Result<()> {
     let cfg = &run.train;
     let step = st.svg.env_steps();
-    let policy = st.svg.policy();
+    let policy = st.svg.reported_policy();
     let (mut own, mut dist) = (0.0, 0.0);
     for k in 0..cfg.select_episodes {
         let r = rollout(
@@ -737,7 +737,10 @@ fn start_method(
     let (fit_seed, svg_seed) = method_seeds(run.seed, method);
     let (reward, terminal) = fit_reward(&run.train, method, fit_seed, es, ea)?;
     let mut rng = ChaCha8Rng::seed_from_u64(svg_seed);
-    let svg = Svg1::new(&run.train.svg, warm.clone(), &mut rng)?;
+    let mut svg = Svg1::new(&run.train.svg, warm.clone(), &mut rng)?;
+    if run.train.svg.bc_weight > 0.0 {
+        svg.set_demos(es.to_owned(), ea.to_owned());
+    }
     Ok(MethodState {
         method: method.into(),
         reward,
@@ -759,8 +762,28 @@ fn start_method(
 
 /// Evaluates a trained method.
 fn finish_method(run: &RunConfig, st: MethodState) -> anyhow::Result<MethodResult> {
-    let last_policy = st.svg.policy();
+    let last_policy = st.svg.reported_policy();
     let (last, last_trajs) = evaluate(&run.drive, last_policy, run.eval_runs)?;
+    if let Ok(roads) = std::env::var("RED_GEN_ROADS") {
+        // Diagnostics: the final policy on other roads (track seeds).
+        let mut all = Vec::new();
+        for t in roads.split(',').filter_map(|v| v.trim().parse::<u64>().ok()) {
+            let mut c = run.drive.clone();
+            c.track_seed = t;
+            let (e, _) = evaluate(&c, last_policy, run.eval_runs)?;
+            eprintln!("GEN road {t}: {:.1} +- {:.1} {:?}", e.mean, e.std, e.distances);
+            all.push(e.percent_of_road);
+        }
+        let m = all.iter().sum::<f64>() / all.len().max(1) as f64;
+        eprintln!("GEN mean % of road over {} unseen roads: {m:.1}", all.len());
+    }
+    if st.svg.config().policy_avg_tau > 0.0 {
+        let (raw, _) = evaluate(&run.drive, st.svg.policy(), run.eval_runs)?;
+        eprintln!(
+            "final raw (non-averaged) policy: {:.1} +- {:.1} {:?}",
+            raw.mean, raw.std, raw.distances
+        );
+    }
     let total = st.svg.env_steps();
     let (reported, reported_policy, reported_step, trajs) = match &st.selection.best_own {
         Some((_, step, p)) => {
