@@ -767,11 +767,17 @@ fn finish_method(run: &RunConfig, st: MethodState) -> anyhow::Result<MethodResul
     if let Ok(roads) = std::env::var("RED_GEN_ROADS") {
         // Diagnostics: the final policy on other roads (track seeds).
         let mut all = Vec::new();
-        for t in roads.split(',').filter_map(|v| v.trim().parse::<u64>().ok()) {
+        for t in roads
+            .split(',')
+            .filter_map(|v| v.trim().parse::<u64>().ok())
+        {
             let mut c = run.drive.clone();
             c.track_seed = t;
             let (e, _) = evaluate(&c, last_policy, run.eval_runs)?;
-            eprintln!("GEN road {t}: {:.1} +- {:.1} {:?}", e.mean, e.std, e.distances);
+            eprintln!(
+                "GEN road {t}: {:.1} +- {:.1} {:?}",
+                e.mean, e.std, e.distances
+            );
             all.push(e.percent_of_road);
         }
         let m = all.iter().sum::<f64>() / all.len().max(1) as f64;

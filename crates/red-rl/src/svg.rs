@@ -136,6 +136,13 @@ pub struct SvgConfig {
     /// to the policy loss: our addition, not Heess et al.'s nor the RED
     /// paper's. 0: off.
     pub bc_weight: f64,
+    /// With `fixed_std`: the exploration noise of the behaviour policy is
+    /// an AR(1) process `eps_t = rho eps_(t-1) + sqrt(1 - rho^2) sigma z_t`
+    /// (stationary std `sigma`, reset each episode), so steering
+    /// excursions last several steps; the behaviour log-probability stored
+    /// is the conditional one, so the importance weights correct for it.
+    /// 0: white noise.
+    pub noise_rho: f64,
 }
 
 impl Default for SvgConfig {
@@ -161,6 +168,7 @@ impl Default for SvgConfig {
             policy_avg_tau: 0.0,
             importance_weights: true,
             bc_weight: 0.0,
+            noise_rho: 0.0,
         }
     }
 }
@@ -208,7 +216,10 @@ impl SvgConfig {
                 format!("must be finite and >= 1, got {}", self.iw_clip),
             );
         }
-        for (f, v) in [("fixed_std", self.fixed_std), ("fixed_std_final", self.fixed_std_final)] {
+        for (f, v) in [
+            ("fixed_std", self.fixed_std),
+            ("fixed_std_final", self.fixed_std_final),
+        ] {
             if let Some(v) = v
                 && !(v.is_finite() && v > 0.0)
             {
@@ -218,7 +229,16 @@ impl SvgConfig {
         if let Some(v) = self.policy_lr_final
             && !(v.is_finite() && v > 0.0)
         {
-            return bad("policy_lr_final", format!("must be finite and > 0, got {v}"));
+            return bad(
+                "policy_lr_final",
+                format!("must be finite and > 0, got {v}"),
+            );
+        }
+        if !(0.0..1.0).contains(&self.noise_rho) {
+            return bad(
+                "noise_rho",
+                format!("must lie in [0, 1), got {}", self.noise_rho),
+            );
         }
         if !(0.0..=1.0).contains(&self.policy_avg_tau) {
             return bad(
@@ -861,18 +881,36 @@ impl Svg1 {
             let mv = v.iter().map(|&t| t as f64).sum::<f64>() / n;
             let mr = b.rewards.iter().sum::<f64>() / n;
             let mw = w.iter().sum::<f64>() / n;
-            let clipped = w.iter().filter(|&&x| x >= self.config.iw_clip * 0.999).count() as f64 / n;
+            let clipped = w
+                .iter()
+                .filter(|&&x| x >= self.config.iw_clip * 0.999)
+                .count() as f64
+                / n;
             let small = w.iter().filter(|&&x| x < 0.1).count() as f64 / n;
             let ls0 = dist.log_std.column(0).mean().unwrap_or(0.0);
             let ls1 = dist.log_std.column(1).mean().unwrap_or(0.0);
             let p = self.policy.net().params_flat();
             let dp = self.diag_prev.as_ref().map_or(0.0, |q| {
-                p.iter().zip(q).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>().sqrt()
+                p.iter()
+                    .zip(q)
+                    .map(|(a, b)| ((a - b) as f64).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
             });
             self.diag_prev = Some(p);
             eprintln!(
                 "DIAG step {} model {:.5} value {:.4} V {:.3} r {:.4} w {:.3} clip {:.2} w<0.1 {:.2} logstd {:.3} {:.3} dparam {:.4} lr {:.2e}",
-                self.env_steps, model_loss, value_loss, mv, mr, mw, clipped, small, ls0, ls1, dp,
+                self.env_steps,
+                model_loss,
+                value_loss,
+                mv,
+                mr,
+                mw,
+                clipped,
+                small,
+                ls0,
+                ls1,
+                dp,
                 self.policy_opt.config().lr
             );
         }
@@ -890,7 +928,11 @@ impl Svg1 {
             let o = self.update_policy_bc(&b, &inputs, reward, bc.as_ref().map(|(s, a)| (s, a)))?;
             if diag {
                 let (gr, gv) = self.diag_grad.get();
-                eprintln!("DIAGGRAD step {} |w dr/da| {gr:.4e} |w gamma dV/da| {gv:.4e} ratio {:.3}", self.env_steps, gr / gv.max(1e-300));
+                eprintln!(
+                    "DIAGGRAD step {} |w dr/da| {gr:.4e} |w gamma dV/da| {gv:.4e} ratio {:.3}",
+                    self.env_steps,
+                    gr / gv.max(1e-300)
+                );
             }
             Some(o)
         } else {
@@ -941,6 +983,7 @@ impl Svg1 {
         self.check_spaces(env)?;
         let seed = reset_seed.unwrap_or_else(|| rng.random());
         let (mut obs, _) = env.reset(Some(seed))?;
+        let mut eps_prev: Option<Vec<f64>> = None;
         self.check_observation(&obs)?;
         let (o, ad) = (self.policy.obs_dim(), self.policy.act_dim());
         let (mut states, mut actions) = (Vec::new(), Vec::new());
@@ -948,7 +991,32 @@ impl Svg1 {
         let mut finished = false;
         let mut info = Info::new();
         while (len as u64) < max_steps {
-            let (a, logp) = self.act(&obs, rng)?;
+            let (a, logp) = match (self.current_fixed_std(), self.config.noise_rho > 0.0) {
+                (Some(sd), true) => {
+                    let rho = self.config.noise_rho;
+                    let mu = self.policy.act_deterministic(&obs)?;
+                    let k = mu.len();
+                    let (cs, prev) = match &eps_prev {
+                        Some(p) => (
+                            (1.0 - rho * rho).sqrt() * sd,
+                            p.iter().map(|e| rho * e).collect(),
+                        ),
+                        None => (sd, vec![0.0; k]),
+                    };
+                    let mut eps = vec![0.0; k];
+                    let mut a = vec![0.0; k];
+                    let mut logp = 0.0;
+                    for j in 0..k {
+                        let z: f64 = rng.sample(rand_distr::StandardNormal);
+                        eps[j] = prev[j] + cs * z;
+                        a[j] = mu[j] + eps[j];
+                        logp -= 0.5 * z * z + cs.ln() + 0.918_938_533_204_672_7;
+                    }
+                    eps_prev = Some(eps);
+                    (a, logp)
+                }
+                _ => self.act(&obs, rng)?,
+            };
             let step = env.step(&a)?;
             self.check_observation(&step.observation)?;
             let ov = ArrayView2::from_shape((1, obs.len()), &obs).map_err(shape_err)?;

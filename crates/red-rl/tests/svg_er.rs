@@ -446,8 +446,16 @@ fn fixed_std_sets_exploration_and_keeps_the_gradient_exact() {
     }
     assert!((var.sqrt() - 0.2).abs() < 0.02, "std {}", var.sqrt());
     let mut env = Reach::default();
-    svg.train(&mut env, &ReachReward, 60, None, &|_| 0.0, &mut rng, &mut |_| {})
-        .unwrap();
+    svg.train(
+        &mut env,
+        &ReachReward,
+        60,
+        None,
+        &|_| 0.0,
+        &mut rng,
+        &mut |_| {},
+    )
+    .unwrap();
     let batch = svg.sample(16, &mut rng).unwrap();
     let inputs = svg.policy_inputs(&batch).unwrap();
     let (_, grads) = svg.policy_objective(&batch, &inputs, &ReachReward).unwrap();
@@ -493,8 +501,16 @@ fn scheduled_fixed_std_and_averaged_policy_learn_to_reach() {
     let (mut svg, mut rng) = fresh(5, &config);
     let before = eval_distance(svg.policy(), 10);
     let mut env = Reach::default();
-    svg.train(&mut env, &ReachReward, 8_000, None, &|_| 0.0, &mut rng, &mut |_| {})
-        .unwrap();
+    svg.train(
+        &mut env,
+        &ReachReward,
+        8_000,
+        None,
+        &|_| 0.0,
+        &mut rng,
+        &mut |_| {},
+    )
+    .unwrap();
     assert_eq!(svg.current_fixed_std(), Some(0.2));
     assert_ne!(svg.reported_policy(), svg.policy());
     let after = eval_distance(svg.reported_policy(), 10);
