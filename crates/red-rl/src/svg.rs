@@ -110,6 +110,39 @@ pub struct SvgConfig {
     pub target_tau: f64,
     /// Gradient-norm clip of every network. Our choice: 10.
     pub max_grad_norm: f32,
+    /// When set, the policy's standard deviation is this fixed value for
+    /// acting, importance weights and the policy step (the policy's own
+    /// log-std head is ignored and not trained). Default: none (the learned,
+    /// state-dependent log-std).
+    pub fixed_std: Option<f64>,
+    /// With `fixed_std`: the standard deviation reached (linearly) at
+    /// environment step `schedule_steps`. Default: none (constant).
+    pub fixed_std_final: Option<f64>,
+    /// The policy learning rate reached (linearly from `policy_lr`, starting
+    /// when policy updates start) at environment step `schedule_steps`.
+    /// Default: none (constant).
+    pub policy_lr_final: Option<f32>,
+    /// Environment step at which the schedules above end. 0: no schedule.
+    pub schedule_steps: u64,
+    /// Polyak factor of an averaged copy of the policy's parameters, moved
+    /// after every policy update (0: no averaged copy). The averaged policy
+    /// is what [`Svg1::reported_policy`] returns.
+    pub policy_avg_tau: f64,
+    /// Whether value and policy updates weight replayed transitions by the
+    /// truncated importance weight (SVG(1)-ER as in Heess et al.: true).
+    pub importance_weights: bool,
+    /// Weight of a behaviour-cloning term `bc_weight * mean ||mu(s_d) -
+    /// a_d||^2` on demonstration pairs (set with [`Svg1::set_demos`]) added
+    /// to the policy loss: our addition, not Heess et al.'s nor the RED
+    /// paper's. 0: off.
+    pub bc_weight: f64,
+    /// With `fixed_std`: the exploration noise of the behaviour policy is
+    /// an AR(1) process `eps_t = rho eps_(t-1) + sqrt(1 - rho^2) sigma z_t`
+    /// (stationary std `sigma`, reset each episode), so steering
+    /// excursions last several steps; the behaviour log-probability stored
+    /// is the conditional one, so the importance weights correct for it.
+    /// 0: white noise.
+    pub noise_rho: f64,
 }
 
 impl Default for SvgConfig {
@@ -128,6 +161,14 @@ impl Default for SvgConfig {
             iw_clip: 5.0,
             target_tau: 0.01,
             max_grad_norm: 10.0,
+            fixed_std: None,
+            fixed_std_final: None,
+            policy_lr_final: None,
+            schedule_steps: 0,
+            policy_avg_tau: 0.0,
+            importance_weights: true,
+            bc_weight: 0.0,
+            noise_rho: 0.0,
         }
     }
 }
@@ -173,6 +214,36 @@ impl SvgConfig {
             return bad(
                 "iw_clip",
                 format!("must be finite and >= 1, got {}", self.iw_clip),
+            );
+        }
+        for (f, v) in [
+            ("fixed_std", self.fixed_std),
+            ("fixed_std_final", self.fixed_std_final),
+        ] {
+            if let Some(v) = v
+                && !(v.is_finite() && v > 0.0)
+            {
+                return bad(f, format!("must be finite and > 0, got {v}"));
+            }
+        }
+        if let Some(v) = self.policy_lr_final
+            && !(v.is_finite() && v > 0.0)
+        {
+            return bad(
+                "policy_lr_final",
+                format!("must be finite and > 0, got {v}"),
+            );
+        }
+        if !(0.0..1.0).contains(&self.noise_rho) {
+            return bad(
+                "noise_rho",
+                format!("must lie in [0, 1), got {}", self.noise_rho),
+            );
+        }
+        if !(0.0..=1.0).contains(&self.policy_avg_tau) {
+            return bad(
+                "policy_avg_tau",
+                format!("must lie in [0, 1], got {}", self.policy_avg_tau),
             );
         }
         if !(self.target_tau > 0.0 && self.target_tau <= 1.0) {
@@ -274,6 +345,12 @@ pub struct Svg1 {
     value_opt: Adam,
     replay: Replay,
     env_steps: u64,
+    /// Polyak-averaged policy (when `policy_avg_tau > 0`).
+    #[serde(default)]
+    avg_policy: Option<GaussianPolicy>,
+    /// Demonstration pairs for `bc_weight`.
+    #[serde(default)]
+    demos: Option<(Array2<f64>, Array2<f64>)>,
 }
 
 impl Svg1 {
@@ -304,7 +381,10 @@ impl Svg1 {
         let policy_opt = Adam::new(AdamConfig::with_lr(config.policy_lr), policy.net())?;
         let model_opt = Adam::new(AdamConfig::with_lr(config.model_lr), &model)?;
         let value_opt = Adam::new(AdamConfig::with_lr(config.value_lr), &value)?;
+        let avg_policy = (config.policy_avg_tau > 0.0).then(|| policy.clone());
         Ok(Self {
+            demos: None,
+            avg_policy,
             config: config.clone(),
             policy,
             value_target: value.clone(),
@@ -343,6 +423,46 @@ impl Svg1 {
         &mut self.policy
     }
 
+    /// The policy to report: the Polyak-averaged one when
+    /// `policy_avg_tau > 0`, else the current one.
+    pub fn reported_policy(&self) -> &GaussianPolicy {
+        self.avg_policy.as_ref().unwrap_or(&self.policy)
+    }
+
+    /// The fixed standard deviation at the current step, if any.
+    pub fn current_fixed_std(&self) -> Option<f64> {
+        let s0 = self.config.fixed_std?;
+        Some(match self.config.fixed_std_final {
+            Some(s1) => s0 + (s1 - s0) * self.schedule_progress(0),
+            None => s0,
+        })
+    }
+
+    /// Fraction in [0, 1] of the schedule done, the schedule starting at
+    /// env step `start`.
+    fn schedule_progress(&self, start: u64) -> f64 {
+        let end = self.config.schedule_steps;
+        if end <= start {
+            return if end == 0 { 0.0 } else { 1.0 };
+        }
+        (self.env_steps.saturating_sub(start) as f64 / (end - start) as f64).min(1.0)
+    }
+
+    /// The policy's distribution on prepared observations, with the fixed
+    /// standard deviation applied (its log-std then passes no gradient).
+    fn dist_fixed(&self, mut dist: crate::policy::GaussianBatch) -> crate::policy::GaussianBatch {
+        if let Some(sd) = self.current_fixed_std() {
+            dist.log_std.fill(sd.ln());
+            dist.log_std_mask.fill(0.0);
+        }
+        dist
+    }
+
+    /// Demonstration pairs for the behaviour-cloning term (`bc_weight`).
+    pub fn set_demos(&mut self, states: Array2<f64>, actions: Array2<f64>) {
+        self.demos = Some((states, actions));
+    }
+
     /// Unwraps the policy.
     pub fn into_policy(self) -> GaussianPolicy {
         self.policy
@@ -365,12 +485,20 @@ impl Svg1 {
     /// Shape or non-finite observation errors.
     pub fn act<R: Rng + ?Sized>(&self, obs: &[f64], rng: &mut R) -> Result<(Vec<f64>, f64)> {
         let mut a = vec![0.0; self.policy.act_dim()];
-        self.policy
-            .act_into(obs, Some(rng), &mut PolicyWorkspace::default(), &mut a)?;
+        if let Some(sd) = self.current_fixed_std() {
+            self.policy
+                .act_into(obs, None::<&mut R>, &mut PolicyWorkspace::default(), &mut a)?;
+            for v in &mut a {
+                *v += sd * rng.sample::<f64, _>(rand_distr::StandardNormal);
+            }
+        } else {
+            self.policy
+                .act_into(obs, Some(rng), &mut PolicyWorkspace::default(), &mut a)?;
+        }
         let x = self
             .policy
             .prepare_obs(ArrayView2::from_shape((1, obs.len()), obs).map_err(shape_err)?)?;
-        let dist = self.policy.distribution(x.view(), &mut Workspace::new())?;
+        let dist = self.dist_fixed(self.policy.distribution(x.view(), &mut Workspace::new())?);
         let av = ArrayView2::from_shape((1, a.len()), &a).map_err(shape_err)?;
         let logp = dist.log_prob(av)[0];
         Ok((a, logp))
@@ -502,8 +630,11 @@ impl Svg1 {
     /// Shape errors.
     pub fn importance_weights(&self, batch: &SvgBatch) -> Result<Vec<f64>> {
         let x = self.policy.prepare_obs(batch.states.view())?;
-        let dist = self.policy.distribution(x.view(), &mut Workspace::new())?;
+        let dist = self.dist_fixed(self.policy.distribution(x.view(), &mut Workspace::new())?);
         let lp = dist.log_prob(batch.actions.view());
+        if !self.config.importance_weights {
+            return Ok(vec![1.0; lp.len()]);
+        }
         Ok(lp
             .iter()
             .zip(&batch.behaviour_logp)
@@ -556,7 +687,7 @@ impl Svg1 {
     pub fn policy_inputs(&self, batch: &SvgBatch) -> Result<PolicyInputs> {
         let x = self.policy.prepare_obs(batch.states.view())?;
         let xn = self.policy.prepare_obs(batch.next_states.view())?;
-        let dist = self.policy.distribution(x.view(), &mut Workspace::new())?;
+        let dist = self.dist_fixed(self.policy.distribution(x.view(), &mut Workspace::new())?);
         let mut eta = &batch.actions - &dist.mean;
         eta.zip_mut_with(&dist.log_std, |e, &ls| *e *= (-ls).exp());
         let input = Self::model_input(x.view(), batch.actions.view());
@@ -583,7 +714,7 @@ impl Svg1 {
         let o = self.policy.obs_dim();
         let x = self.policy.prepare_obs(batch.states.view())?;
         let mut ptape = Tape::new();
-        let dist = self.policy.distribution_tape(x.view(), &mut ptape)?;
+        let dist = self.dist_fixed(self.policy.distribution_tape(x.view(), &mut ptape)?);
         let mut a = inputs.eta.clone();
         a.zip_mut_with(&dist.log_std, |e, &ls| *e *= ls.exp());
         a += &dist.mean;
@@ -638,6 +769,21 @@ impl Svg1 {
         inputs: &PolicyInputs,
         reward: &dyn DifferentiableReward,
     ) -> Result<f64> {
+        self.update_policy_bc(batch, inputs, reward, None)
+    }
+
+    /// [`Svg1::update_policy`] with an optional behaviour-cloning batch
+    /// `(states, actions)` weighted by `bc_weight`.
+    ///
+    /// # Errors
+    /// As [`Svg1::update_policy`].
+    pub fn update_policy_bc(
+        &mut self,
+        batch: &SvgBatch,
+        inputs: &PolicyInputs,
+        reward: &dyn DifferentiableReward,
+        bc: Option<(&Array2<f64>, &Array2<f64>)>,
+    ) -> Result<f64> {
         let (obj, mut grads) = self.policy_objective(batch, inputs, reward)?;
         if !grads.is_finite() || !obj.is_finite() {
             return Err(Error::NonFinite {
@@ -646,8 +792,35 @@ impl Svg1 {
             });
         }
         grads.scale(-1.0);
+        if let Some((ds, da)) = bc
+            && self.config.bc_weight > 0.0
+        {
+            let x = self.policy.prepare_obs(ds.view())?;
+            let mut tape = Tape::new();
+            let dist = self.policy.distribution_tape(x.view(), &mut tape)?;
+            let n = ds.nrows() as f64;
+            let d_mean = (&dist.mean - da).mapv(|v| 2.0 * self.config.bc_weight * v / n);
+            let d_ls = Array2::<f64>::zeros(d_mean.raw_dim());
+            self.policy
+                .backward_params(&tape, &dist, d_mean.view(), d_ls.view(), &mut grads);
+        }
         clip_grad_norm(&mut grads, self.config.max_grad_norm);
+        if let Some(lr1) = self.config.policy_lr_final {
+            let start = self.config.learning_starts + self.config.policy_delay;
+            let f = self.schedule_progress(start) as f32;
+            let lr0 = self.config.policy_lr;
+            self.policy_opt.set_lr(lr0 + (lr1 - lr0) * f)?;
+        }
         self.policy_opt.step(self.policy.net_mut(), &grads)?;
+        if let Some(avg) = self.avg_policy.as_mut() {
+            let tau = self.config.policy_avg_tau as f32;
+            let p = self.policy.net().params_flat();
+            let mut t = avg.net().params_flat();
+            for (ti, pi) in t.iter_mut().zip(&p) {
+                *ti += tau * (pi - *ti);
+            }
+            avg.net_mut().set_params_flat(&t)?;
+        }
         Ok(obj)
     }
 
@@ -679,7 +852,16 @@ impl Svg1 {
         let policy_objective = if with_policy {
             let b = self.sample(bs, rng)?;
             let inputs = self.policy_inputs(&b)?;
-            Some(self.update_policy(&b, &inputs, reward)?)
+            let bc = match (&self.demos, self.config.bc_weight > 0.0) {
+                (Some((ds, da)), true) => {
+                    let m = ds.nrows();
+                    let idx: Vec<usize> = (0..bs).map(|_| rng.random_range(0..m)).collect();
+                    Some((ds.select(Axis(0), &idx), da.select(Axis(0), &idx)))
+                }
+                _ => None,
+            };
+            let o = self.update_policy_bc(&b, &inputs, reward, bc.as_ref().map(|(s, a)| (s, a)))?;
+            Some(o)
         } else {
             None
         };
@@ -728,6 +910,7 @@ impl Svg1 {
         self.check_spaces(env)?;
         let seed = reset_seed.unwrap_or_else(|| rng.random());
         let (mut obs, _) = env.reset(Some(seed))?;
+        let mut eps_prev: Option<Vec<f64>> = None;
         self.check_observation(&obs)?;
         let (o, ad) = (self.policy.obs_dim(), self.policy.act_dim());
         let (mut states, mut actions) = (Vec::new(), Vec::new());
@@ -735,7 +918,32 @@ impl Svg1 {
         let mut finished = false;
         let mut info = Info::new();
         while (len as u64) < max_steps {
-            let (a, logp) = self.act(&obs, rng)?;
+            let (a, logp) = match (self.current_fixed_std(), self.config.noise_rho > 0.0) {
+                (Some(sd), true) => {
+                    let rho = self.config.noise_rho;
+                    let mu = self.policy.act_deterministic(&obs)?;
+                    let k = mu.len();
+                    let (cs, prev) = match &eps_prev {
+                        Some(p) => (
+                            (1.0 - rho * rho).sqrt() * sd,
+                            p.iter().map(|e| rho * e).collect(),
+                        ),
+                        None => (sd, vec![0.0; k]),
+                    };
+                    let mut eps = vec![0.0; k];
+                    let mut a = vec![0.0; k];
+                    let mut logp = 0.0;
+                    for j in 0..k {
+                        let z: f64 = rng.sample(rand_distr::StandardNormal);
+                        eps[j] = prev[j] + cs * z;
+                        a[j] = mu[j] + eps[j];
+                        logp -= 0.5 * z * z + cs.ln() + 0.918_938_533_204_672_7;
+                    }
+                    eps_prev = Some(eps);
+                    (a, logp)
+                }
+                _ => self.act(&obs, rng)?,
+            };
             let step = env.step(&a)?;
             self.check_observation(&step.observation)?;
             let ov = ArrayView2::from_shape((1, obs.len()), &obs).map_err(shape_err)?;

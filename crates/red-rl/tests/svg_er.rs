@@ -424,3 +424,98 @@ fn serialised_learner_continues_identically() {
     assert_eq!(a.policy(), b.policy());
     assert_eq!(a.env_steps(), b.env_steps());
 }
+
+#[test]
+fn fixed_std_sets_exploration_and_keeps_the_gradient_exact() {
+    let config = SvgConfig {
+        hidden: vec![8],
+        gamma: 0.9,
+        learning_starts: 0,
+        fixed_std: Some(0.2),
+        ..SvgConfig::default()
+    };
+    // The policy's own sigma is exp(-0.5) ~ 0.61; acting must use 0.2.
+    let (mut svg, mut rng) = fresh(3, &config);
+    let obs = [0.1, -0.2];
+    let mean = svg.policy().act_deterministic(&obs).unwrap();
+    let n = 4000;
+    let mut var = 0.0;
+    for _ in 0..n {
+        let (a, _) = svg.act(&obs, &mut rng).unwrap();
+        var += (a[0] - mean[0]).powi(2) / n as f64;
+    }
+    assert!((var.sqrt() - 0.2).abs() < 0.02, "std {}", var.sqrt());
+    let mut env = Reach::default();
+    svg.train(
+        &mut env,
+        &ReachReward,
+        60,
+        None,
+        &|_| 0.0,
+        &mut rng,
+        &mut |_| {},
+    )
+    .unwrap();
+    let batch = svg.sample(16, &mut rng).unwrap();
+    let inputs = svg.policy_inputs(&batch).unwrap();
+    let (_, grads) = svg.policy_objective(&batch, &inputs, &ReachReward).unwrap();
+    let g = grads.flat();
+    let dir: Vec<f32> = (0..g.len())
+        .map(|_| rng.random_range(-1.0f32..1.0))
+        .collect();
+    let analytic: f64 = g.iter().zip(&dir).map(|(a, b)| *a as f64 * *b as f64).sum();
+    let p0 = svg.policy().net().params_flat();
+    let h = 1e-2f32;
+    let at = |sign: f32| {
+        let mut learner = svg.clone();
+        let p: Vec<f32> = p0.iter().zip(&dir).map(|(p, d)| p + sign * h * d).collect();
+        learner_set(&mut learner, &p);
+        learner
+            .policy_objective(&batch, &inputs, &ReachReward)
+            .unwrap()
+            .0
+    };
+    let numeric = (at(1.0) - at(-1.0)) / (2.0 * h as f64);
+    assert!(
+        (numeric - analytic).abs() <= 0.02 * analytic.abs().max(1e-3) + 1e-5,
+        "analytic {analytic}, numeric {numeric}"
+    );
+}
+
+#[test]
+fn scheduled_fixed_std_and_averaged_policy_learn_to_reach() {
+    let config = SvgConfig {
+        hidden: vec![32],
+        gamma: 0.9,
+        policy_lr: 3e-3,
+        learning_starts: 200,
+        policy_delay: 200,
+        batch_size: 32,
+        fixed_std: Some(0.5),
+        fixed_std_final: Some(0.2),
+        policy_lr_final: Some(1e-3),
+        schedule_steps: 6_000,
+        policy_avg_tau: 0.01,
+        ..SvgConfig::default()
+    };
+    let (mut svg, mut rng) = fresh(5, &config);
+    let before = eval_distance(svg.policy(), 10);
+    let mut env = Reach::default();
+    svg.train(
+        &mut env,
+        &ReachReward,
+        8_000,
+        None,
+        &|_| 0.0,
+        &mut rng,
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(svg.current_fixed_std(), Some(0.2));
+    assert_ne!(svg.reported_policy(), svg.policy());
+    let after = eval_distance(svg.reported_policy(), 10);
+    assert!(
+        after < 0.2 && after < 0.4 * before,
+        "final distance {before} -> {after}"
+    );
+}
