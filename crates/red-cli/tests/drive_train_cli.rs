@@ -214,14 +214,17 @@ fn bad_demo_and_bad_resume_are_refused_with_clear_errors() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("dagger"));
 }
 
-/// A demonstration on another road (track seed 9) written by
-/// `red-cli drive expert`.
+/// A person-like demonstration (key taps through the recorder's key model)
+/// on another road (track seed 9), written by `red-cli drive expert --style
+/// human`.
 fn demo_on_road_9(dir: &Path) -> PathBuf {
     let path = dir.join("road9.json");
     let o = Command::new(env!("CARGO_BIN_EXE_red-cli"))
         .args([
             "drive",
             "expert",
+            "--style",
+            "human",
             "--track-seed",
             "9",
             "--sig-digits",

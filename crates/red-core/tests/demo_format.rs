@@ -189,8 +189,8 @@ fn rewards_of_the_wrong_length() {
 
 #[test]
 fn unknown_version() {
-    let msg = rejected(&with("\"version\": 1", "\"version\": 2"));
-    assert_has(&msg, &["unknown version 2", "reads version 1"]);
+    let msg = rejected(&with("\"version\": 1", "\"version\": 3"));
+    assert_has(&msg, &["unknown version 3", "reads versions 1 to 2"]);
     // Checked before the fields, so a newer file's new fields do not hide it.
     let newer = with(
         "\"version\": 1",
@@ -451,4 +451,23 @@ fn large_file_timing() {
         "{mb:.1} MB, {} pairs: write {w:?}, read+validate {r:?}",
         d.num_pairs()
     );
+}
+
+#[test]
+fn version_2_carries_source_and_scenario_and_version_1_still_reads() {
+    let v1 = Demos::from_json_str(BASE).expect("a version 1 file reads");
+    assert_eq!((v1.source, v1.scenario.clone()), (None, None));
+    let v2 = with(
+        "\"version\": 1",
+        "\"version\": 2, \"source\": \"person\", \"scenario\": {\"track_seed\": 7}",
+    );
+    let d = Demos::from_json_str(&v2).expect("a version 2 file reads");
+    assert_eq!(d.source, Some(red_core::DemoSource::Person));
+    assert_eq!(d.scenario, Some(serde_json::json!({"track_seed": 7})));
+    assert_eq!(red_core::DemoSource::row_label(d.source), "demonstration");
+    assert_eq!(red_core::DemoSource::row_label(None), "expert");
+    // Written back, the fields survive.
+    let text = serde_json::to_string(&d).expect("serialise");
+    assert_eq!(Demos::from_json_str(&text).expect("reads"), d);
+    assert_has(&rejected(&v2.replace("person", "robot")), &["robot"]);
 }
