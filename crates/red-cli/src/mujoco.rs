@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
-use clap::{Args, Subcommand, ValueEnum};
+use clap::{Args, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use red_experiments::Progress;
 use red_experiments::mujoco::check::{EnvCheck, check_env};
@@ -49,37 +49,6 @@ enum MujocoCommand {
     /// Run a grid of tasks x methods x seeds in parallel and write the
     /// paper's Table 1 (markdown and CSV) and a learning-curve PNG per task.
     Table(TableArgs),
-}
-
-/// How the policy is trained (`red_experiments::mujoco::Method`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum MethodArg {
-    /// TRPO on the environment's true reward (an expert for demonstrations).
-    Expert,
-    /// RED: TRPO on `exp(-sigma1 L)` with `L` the RND score (paper Eq. 7).
-    Red,
-    /// The autoencoder baseline: the same reward with an autoencoder's
-    /// reconstruction error as `L`.
-    Ae,
-    /// GAIL's discriminator reward, adapted on every batch.
-    Gail,
-    /// GMMIL's MMD witness reward, adapted on every batch.
-    Gmmil,
-    /// Behaviour cloning alone (no reinforcement learning).
-    Bc,
-}
-
-impl From<MethodArg> for Method {
-    fn from(m: MethodArg) -> Self {
-        match m {
-            MethodArg::Expert => Method::Expert,
-            MethodArg::Red => Method::Red,
-            MethodArg::Ae => Method::Ae,
-            MethodArg::Gail => Method::Gail,
-            MethodArg::Gmmil => Method::Gmmil,
-            MethodArg::Bc => Method::Bc,
-        }
-    }
 }
 
 /// Options shared by `expert` and `train`.
@@ -140,9 +109,9 @@ struct TrainArgs {
     /// The task, e.g. `hopper` or `Hopper-v5`.
     #[arg(long)]
     env: Option<String>,
-    /// The method.
-    #[arg(long, value_enum)]
-    method: Option<MethodArg>,
+    /// The method: red, ae, gail, gmmil, bc (or expert).
+    #[arg(long)]
+    method: Option<Method>,
     /// Demonstration file (default: `<out-dir>/expert-<env>/demos.json`,
     /// written by `red-cli mujoco expert`).
     #[arg(long)]
@@ -196,8 +165,8 @@ struct TableArgs {
     #[arg(long, value_delimiter = ',')]
     envs: Vec<String>,
     /// Methods, comma-separated (default: red, ae, gail, gmmil, bc).
-    #[arg(long, value_delimiter = ',', value_enum)]
-    methods: Vec<MethodArg>,
+    #[arg(long, value_delimiter = ',')]
+    methods: Vec<Method>,
     /// Seeds, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "0")]
     seeds: Vec<u64>,
@@ -250,8 +219,7 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
                 .parse()?;
             let method: Method = a
                 .method
-                .context("--method is required (red, ae, gail, gmmil or bc)")?
-                .into();
+                .context("--method is required (red, ae, gail, gmmil or bc)")?;
             anyhow::ensure!(
                 method != Method::Expert,
                 "use `red-cli mujoco expert` to train an expert"
@@ -461,7 +429,7 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
             .collect::<Result<_, _>>()?;
     }
     if !args.methods.is_empty() {
-        cfg.methods = args.methods.iter().map(|&m| m.into()).collect();
+        cfg.methods = args.methods.clone();
     }
     cfg.validate()?;
     let started = Instant::now();

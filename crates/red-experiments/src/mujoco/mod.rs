@@ -95,6 +95,20 @@ impl Method {
     }
 }
 
+impl std::str::FromStr for Method {
+    type Err = String;
+    /// A method by its [`Method::name`] (`red`, `ae`, `gail`, `gmmil`, `bc`,
+    /// `expert`), case-insensitive.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let s = s.trim().to_ascii_lowercase();
+        [Method::Expert]
+            .into_iter()
+            .chain(Method::TABLE)
+            .find(|m| m.name() == s)
+            .ok_or_else(|| format!("unknown method `{s}` (red, ae, gail, gmmil, bc or expert)"))
+    }
+}
+
 /// `hopper`, `halfcheetah`, ...: the task's name in run folders.
 pub fn short_name(env: EnvId) -> String {
     env.name().trim_end_matches("-v5").to_ascii_lowercase()
