@@ -87,15 +87,8 @@ fn run_config(args: &TrainArgs) -> anyhow::Result<(DriveRunConfig, red_core::Dem
     if let Some(n) = note {
         eprintln!("note: {n}");
     }
-    let mut train: DriveTrainConfig = match &args.train_config {
-        Some(p) => {
-            let text =
-                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-            serde_json::from_str(&text)
-                .with_context(|| format!("parsing the training config {}", p.display()))?
-        }
-        None => DriveTrainConfig::default(),
-    };
+    let mut train: DriveTrainConfig =
+        crate::read_json(args.train_config.as_deref(), "the training config")?;
     if let Some(s) = args.steps {
         train.steps = s;
     }

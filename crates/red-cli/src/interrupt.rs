@@ -31,11 +31,6 @@ pub fn flag() -> &'static AtomicBool {
     &REQUESTED
 }
 
-/// Whether the user asked the run to stop.
-pub fn requested() -> bool {
-    REQUESTED.load(Ordering::SeqCst)
-}
-
 /// Asks the run to stop, as Ctrl-C does (tests use it to interrupt a run at
 /// a known point).
 #[allow(dead_code)] // only tests call it

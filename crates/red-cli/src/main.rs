@@ -56,6 +56,31 @@ pub(crate) fn flag_error(e: red_experiments::Error) -> anyhow::Error {
     }
 }
 
+/// The text of the file a flag names, if it names one.
+pub(crate) fn read_text(path: Option<&std::path::Path>) -> anyhow::Result<Option<String>> {
+    let read = |p: &std::path::Path| {
+        std::fs::read_to_string(p).map_err(|e| anyhow::anyhow!("reading {}: {e}", p.display()))
+    };
+    path.map(read).transpose()
+}
+
+/// The config in the JSON file a flag names (missing fields take their
+/// defaults), or the defaults.
+pub(crate) fn read_json<T: serde::de::DeserializeOwned + Default>(
+    path: Option<&std::path::Path>,
+    what: &str,
+) -> anyhow::Result<T> {
+    let Some(text) = read_text(path)? else {
+        return Ok(T::default());
+    };
+    serde_json::from_str(&text).map_err(|e| {
+        anyhow::anyhow!(
+            "parsing {what} {}: {e}",
+            path.unwrap_or("?".as_ref()).display()
+        )
+    })
+}
+
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
-use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use indicatif::MultiProgress;
 use red_experiments::Progress;
 use red_experiments::mujoco::check::{EnvCheck, check_env};
 use red_experiments::mujoco::run::{self, Outcome, PolicyEval, RunConfig};
@@ -21,6 +21,7 @@ use red_experiments::mujoco::{Method, default_demo, default_run_name, short_name
 use red_mujoco::EnvId;
 
 use crate::interrupt;
+use crate::progress::Bar;
 
 /// Arguments of `red-cli mujoco`.
 #[derive(Debug, Args)]
@@ -99,7 +100,7 @@ struct CommonRunArgs {
 struct ExpertArgs {
     /// The task, e.g. `hopper` or `Hopper-v5` (not needed with `--resume`).
     #[arg(long, required_unless_present = "resume")]
-    env: Option<String>,
+    env: Option<EnvId>,
     #[command(flatten)]
     common: CommonRunArgs,
 }
@@ -108,7 +109,7 @@ struct ExpertArgs {
 struct TrainArgs {
     /// The task, e.g. `hopper` or `Hopper-v5`.
     #[arg(long)]
-    env: Option<String>,
+    env: Option<EnvId>,
     /// The method: red, ae, gail, gmmil, bc (or expert).
     #[arg(long)]
     method: Option<Method>,
@@ -128,7 +129,7 @@ struct EvalArgs {
     policy: PathBuf,
     /// The task the policy was trained on.
     #[arg(long)]
-    env: String,
+    env: EnvId,
     /// Episodes (the paper: 50).
     #[arg(long, default_value_t = 50)]
     episodes: usize,
@@ -149,7 +150,7 @@ struct CheckArgs {
     /// Environment to check, e.g. `Hopper-v5` or `hopper`; repeat for
     /// several (default: all five).
     #[arg(long = "env", value_name = "ID")]
-    envs: Vec<String>,
+    envs: Vec<EnvId>,
     /// Steps per run of the checker.
     #[arg(long, default_value_t = 1000)]
     steps: usize,
@@ -163,7 +164,7 @@ struct CheckArgs {
 struct TableArgs {
     /// Tasks, comma-separated (default: all five).
     #[arg(long, value_delimiter = ',')]
-    envs: Vec<String>,
+    envs: Vec<EnvId>,
     /// Methods, comma-separated (default: red, ae, gail, gmmil, bc).
     #[arg(long, value_delimiter = ',')]
     methods: Vec<Method>,
@@ -203,20 +204,15 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
     match args.command {
         MujocoCommand::Check(a) => check(a),
         MujocoCommand::Expert(a) => {
-            let env: EnvId = match &a.env {
-                Some(e) => e.parse()?,
-                None => EnvId::Hopper, // unused: the run's config.json decides
-            };
+            // Without --env (--resume), the run's config.json decides.
+            let env = a.env.unwrap_or(EnvId::Hopper);
             start_run(env, Method::Expert, None, a.common)
         }
         MujocoCommand::Train(a) => {
             if a.common.resume.is_some() {
                 return start_run(EnvId::Hopper, Method::Red, None, a.common);
             }
-            let env: EnvId = a
-                .env
-                .context("--env is required (or --resume RUN_DIR)")?
-                .parse()?;
+            let env = a.env.context("--env is required (or --resume RUN_DIR)")?;
             let method: Method = a
                 .method
                 .context("--method is required (red, ae, gail, gmmil or bc)")?;
@@ -240,12 +236,8 @@ fn build_config(
     common: &CommonRunArgs,
 ) -> anyhow::Result<RunConfig> {
     let mut cfg = RunConfig::for_task(env, method);
-    if method == Method::Expert {
-        cfg.steps = 5_000_000;
-    }
     if let Some(path) = &common.config {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let text = crate::read_text(Some(path))?.unwrap_or_default();
         // Fields missing from the file keep the task's defaults.
         cfg = cfg.with_overrides(&text, path)?;
     }
@@ -272,80 +264,6 @@ fn build_config(
     Ok(cfg)
 }
 
-/// The progress bar style of a training run.
-fn bar_style() -> ProgressStyle {
-    ProgressStyle::with_template(
-        "{prefix:>22} {bar:28} {pos:>9}/{len} steps {elapsed_precise} (eta {eta}) {msg}",
-    )
-    .unwrap_or_else(|_| ProgressStyle::default_bar())
-}
-
-/// A run's progress bar; notes go above it, or to stderr prefixed with the
-/// run's label when the bar is hidden (logs). Removed from `multi` when
-/// dropped.
-struct RunBar {
-    bar: ProgressBar,
-    label: String,
-    multi: Option<MultiProgress>,
-    /// The hidden `--stop-after-iterations` testing aid, in env steps:
-    /// behaves as Ctrl-C once the run has reached them.
-    stop_after_steps: Option<u64>,
-}
-
-impl RunBar {
-    fn new(label: String, multi: Option<&MultiProgress>) -> Self {
-        let bar = ProgressBar::new(0);
-        let bar = match multi {
-            Some(m) => m.add(bar),
-            None => bar,
-        };
-        bar.set_style(bar_style());
-        bar.set_prefix(label.clone());
-        Self {
-            bar,
-            label,
-            multi: multi.cloned(),
-            stop_after_steps: None,
-        }
-    }
-}
-
-impl Progress for RunBar {
-    fn note(&mut self, text: &str) {
-        if self.bar.is_hidden() {
-            eprintln!("{}: {text}", self.label);
-        } else {
-            self.bar.println(text);
-        }
-    }
-
-    fn start(&mut self, _label: &str, total: u64, done: u64) {
-        self.bar.set_length(total);
-        self.bar.set_position(done);
-    }
-
-    fn advance(&mut self, done: u64, message: &str) {
-        self.bar.set_position(done);
-        self.bar.set_message(message.to_string());
-        if self.stop_after_steps.is_some_and(|s| done >= s) {
-            interrupt::request();
-        }
-    }
-
-    fn finish(&mut self) {
-        self.bar.finish_and_clear();
-    }
-}
-
-impl Drop for RunBar {
-    fn drop(&mut self) {
-        self.bar.finish_and_clear();
-        if let Some(m) = &self.multi {
-            m.remove(&self.bar);
-        }
-    }
-}
-
 fn start_run(
     env: EnvId,
     method: Method,
@@ -370,11 +288,11 @@ fn start_run(
             (common.out_dir.join(name), cfg, false)
         }
     };
-    let mut bar = RunBar::new(
+    let mut bar = Bar::labelled(
         format!("{} {}", short_name(cfg.env), cfg.method.name()),
         None,
     );
-    bar.stop_after_steps = common
+    bar.stop_at = common
         .stop_after_iterations
         .map(|k| k * cfg.trpo.steps_per_batch as u64);
     let outcome = run::run(&dir, Some(cfg), resume, interrupt::flag(), &mut bar)?;
@@ -404,7 +322,7 @@ impl GridProgress for GridBars {
     }
 
     fn cell(&self, label: &str) -> Box<dyn Progress + '_> {
-        Box::new(RunBar::new(label.to_string(), Some(&self.multi)))
+        Box::new(Bar::labelled(label.to_string(), Some(&self.multi)))
     }
 }
 
@@ -422,11 +340,7 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
         ..TableConfig::default()
     };
     if !args.envs.is_empty() {
-        cfg.envs = args
-            .envs
-            .iter()
-            .map(|s| s.parse::<EnvId>())
-            .collect::<Result<_, _>>()?;
+        cfg.envs = args.envs;
     }
     if !args.methods.is_empty() {
         cfg.methods = args.methods.clone();
@@ -459,7 +373,7 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
 }
 
 fn eval(args: EvalArgs) -> anyhow::Result<()> {
-    let env: EnvId = args.env.parse()?;
+    let env = args.env;
     let (report, warnings) =
         run::evaluate_file(&args.policy, env, args.episodes, args.seed, args.stochastic)?;
     let e = PolicyEval::new(&args.policy, env, args.seed, args.stochastic, &report);
@@ -478,9 +392,6 @@ fn check(args: CheckArgs) -> anyhow::Result<()> {
         EnvId::ALL.to_vec()
     } else {
         args.envs
-            .iter()
-            .map(|s| s.parse::<EnvId>())
-            .collect::<Result<Vec<_>, _>>()?
     };
     anyhow::ensure!(args.steps > 0, "--steps must be at least 1");
     match red_mujoco::assets::assets_dir() {
@@ -493,20 +404,4 @@ fn check(args: CheckArgs) -> anyhow::Result<()> {
     }
     println!("all environments passed the env checker");
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn rejects_unknown_environments() {
-        let err = check(CheckArgs {
-            envs: vec!["Humanoid-v5".into()],
-            steps: 10,
-            seed: 0,
-        })
-        .unwrap_err();
-        assert!(err.to_string().contains("Hopper-v5"), "{err}");
-    }
 }

@@ -2,7 +2,6 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use clap::Args;
 use red_drive::DriveConfig;
 
@@ -33,15 +32,7 @@ impl TrackArgs {
 /// The road of `track`: the settings file (or the default road) with the
 /// track seed given.
 pub fn load_config(track: &TrackArgs) -> anyhow::Result<DriveConfig> {
-    let mut config = match &track.config {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading {}", path.display()))?;
-            serde_json::from_str(&text)
-                .with_context(|| format!("parsing the drive config {}", path.display()))?
-        }
-        None => DriveConfig::default(),
-    };
+    let mut config: DriveConfig = crate::read_json(track.config.as_deref(), "the drive config")?;
     if let Some(s) = track.track_seed {
         config.track_seed = s;
     }

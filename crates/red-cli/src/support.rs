@@ -6,12 +6,14 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 use red_core::{Demos, Seeder, Stream};
-use red_support::stats::quantile_sorted;
+use red_experiments::Progress;
+
+use crate::progress::Bar;
+use red_support::stats::summary_line;
 use red_support::{
-    AutoencoderConfig, EstimatorConfig, FitProgress, FittedEstimator, KernelPcaConfig,
-    RedRewardConfig, RndConfig, Sigma1, SupportEstimatorConfig, SupportModel, calibrate_sigma1,
+    EstimatorConfig, FitProgress, FittedEstimator, RedRewardConfig, Sigma1, SupportEstimatorConfig,
+    SupportModel,
 };
 
 /// Arguments of `red-cli support`.
@@ -30,7 +32,7 @@ enum SupportCommand {
     Score(ScoreArgs),
 }
 
-/// The estimator kinds.
+/// The estimator kinds (their value names are `EstimatorConfig::kind`'s).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum Kind {
     /// Random network distillation (the release's networks).
@@ -87,19 +89,6 @@ pub fn run(args: SupportArgs) -> anyhow::Result<()> {
     }
 }
 
-fn read_config<T: serde::de::DeserializeOwned + Default>(
-    path: &Option<PathBuf>,
-) -> anyhow::Result<T> {
-    match path {
-        None => Ok(T::default()),
-        Some(p) => {
-            let text =
-                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-            serde_json::from_str(&text).with_context(|| format!("parsing {}", p.display()))
-        }
-    }
-}
-
 fn fit(args: FitArgs) -> anyhow::Result<()> {
     let demos =
         Demos::read(&args.demo).with_context(|| format!("reading {}", args.demo.display()))?;
@@ -107,17 +96,14 @@ fn fit(args: FitArgs) -> anyhow::Result<()> {
     if s.nrows() == 0 {
         bail!("{}: no state-action pairs to fit on", args.demo.display());
     }
-    let mut cfg = match args.estimator {
-        Kind::Rnd => EstimatorConfig::Rnd(read_config::<RndConfig>(&args.config)?),
-        Kind::Ae => EstimatorConfig::Autoencoder(read_config::<AutoencoderConfig>(&args.config)?),
-        Kind::Kpca => EstimatorConfig::KernelPca(read_config::<KernelPcaConfig>(&args.config)?),
-    };
+    let json = crate::read_text(args.config.as_deref())?;
+    let kind = args
+        .estimator
+        .to_possible_value()
+        .map(|v| v.get_name().to_string());
+    let mut cfg = EstimatorConfig::from_json(kind.as_deref().unwrap_or("rnd"), json.as_deref())?;
     if let Some(e) = args.epochs {
-        match &mut cfg {
-            EstimatorConfig::Rnd(c) => c.epochs = e,
-            EstimatorConfig::Autoencoder(c) => c.epochs = e,
-            EstimatorConfig::KernelPca(_) => bail!("--epochs does not apply to kernel PCA"),
-        }
+        cfg.set_epochs(e).context("--epochs")?;
     }
     cfg.validate().context("estimator config")?;
     println!(
@@ -129,37 +115,22 @@ fn fit(args: FitArgs) -> anyhow::Result<()> {
         args.demo.display(),
         args.seed
     );
-    let bar = ProgressBar::new(0);
-    bar.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} {msg} [{elapsed_precise} < {eta}]")
-            .context("progress bar template")?,
-    );
+    let mut bar = Bar::new(false, None);
+    bar.start("fit", 0, 0);
     let mut on_progress = |p: FitProgress| {
-        bar.set_length(p.total as u64);
-        bar.set_position(p.done as u64);
-        if let Some(l) = p.loss {
-            bar.set_message(format!("loss {l:.3e}"));
-        }
+        let loss = p.loss.map_or(String::new(), |l| format!("loss {l:.3e}"));
+        bar.start_total(p.total as u64);
+        bar.advance(p.done as u64, &loss);
     };
     let mut rng = Seeder::new(args.seed).rng(Stream::Estimator);
     let start = Instant::now();
     let model = cfg.fit(s.view(), a.view(), &mut rng, &mut on_progress)?;
-    bar.finish_and_clear();
+    bar.finish();
     let secs = start.elapsed().as_secs_f64();
     model
         .save(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
-    let detail = match &model {
-        FittedEstimator::Rnd(m) => format!("final training loss {:?}", m.final_losses()),
-        FittedEstimator::Autoencoder(m) => format!("final training loss {:.4e}", m.final_loss()),
-        FittedEstimator::KernelPca(m) => format!(
-            "bandwidth {:.4}, {} components ({:.4} of the trace)",
-            m.bandwidth(),
-            m.components(),
-            m.explained_share()
-        ),
-    };
-    println!("fitted in {secs:.1} s: {detail}");
+    println!("fitted in {secs:.1} s: {}", model.describe());
     println!("model written to {}", args.out.display());
     Ok(())
 }
@@ -191,42 +162,20 @@ fn score(args: ScoreArgs) -> anyhow::Result<()> {
         scores.len(),
         args.demo.display()
     );
-    print_stats("score L", &scores);
-    let (sigma1, how) = match args.sigma1 {
-        Some(s) => (s, "given".to_string()),
-        None => match RedRewardConfig::default().sigma1 {
-            Sigma1::Calibrated { quantile, reward } => (
-                calibrate_sigma1(&scores, quantile, reward)?,
-                format!("calibrated: the {quantile} quantile of these scores gets reward {reward}"),
-            ),
-            Sigma1::Fixed(s) => (s, "default".to_string()),
-        },
-    };
+    println!("{}", summary_line("score L", &scores));
+    let rule = args
+        .sigma1
+        .map_or(RedRewardConfig::default().sigma1, Sigma1::Fixed);
+    let sigma1 = rule.resolve(&scores)?;
     if !(sigma1.is_finite() && sigma1 > 0.0) {
         bail!("--sigma1 must be finite and > 0, got {sigma1}");
     }
-    println!("sigma1 = {sigma1:.6e} ({how})");
+    println!("sigma1 = {sigma1:.6e} ({})", rule.describe());
     // exp(-sigma1 L) is decreasing in L, so the sorted rewards are the
     // reversed sorted scores.
     let rewards: Vec<f64> = scores.iter().rev().map(|l| (-sigma1 * l).exp()).collect();
-    print_stats("reward r", &rewards);
+    println!("{}", summary_line("reward r", &rewards));
     let share = rewards.iter().filter(|r| **r >= 0.9).count() as f64 / rewards.len() as f64;
     println!("share of pairs with reward >= 0.9: {share:.3}");
     Ok(())
-}
-
-fn print_stats(name: &str, sorted: &[f64]) {
-    let mean = sorted.iter().sum::<f64>() / sorted.len() as f64;
-    println!(
-        "{name:<8} mean {:.4e}  min {:.4e}  q10 {:.4e}  q25 {:.4e}  median {:.4e}  q75 {:.4e}  q90 {:.4e}  q99 {:.4e}  max {:.4e}",
-        mean,
-        sorted[0],
-        quantile_sorted(sorted, 0.1),
-        quantile_sorted(sorted, 0.25),
-        quantile_sorted(sorted, 0.5),
-        quantile_sorted(sorted, 0.75),
-        quantile_sorted(sorted, 0.9),
-        quantile_sorted(sorted, 0.99),
-        sorted[sorted.len() - 1]
-    );
 }

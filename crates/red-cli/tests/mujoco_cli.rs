@@ -249,4 +249,12 @@ fn refusals_name_the_problem() {
     let o = cli(&["train", "--resume", out.to_str().unwrap()], out);
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("config.json"), "{e}");
+    // An unknown task is refused, naming the known ones.
+    let mut c = Command::new(env!("CARGO_BIN_EXE_red-cli"));
+    let o = c
+        .args(["mujoco", "check", "--env", "Humanoid-v5", "--steps", "10"])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("Hopper-v5"), "{e}");
 }

@@ -219,6 +219,28 @@ impl Demos {
             .collect()
     }
 
+    /// Rounds every observation, action and reward to `digits` significant
+    /// digits (smaller files; 0 and non-finite numbers stay as they are).
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] if `digits` is 0.
+    pub fn round_to_significant(&mut self, digits: usize) -> Result<()> {
+        if digits == 0 {
+            return Err(Error::InvalidConfig {
+                field: "sig_digits".to_string(),
+                reason: "must be at least 1".to_string(),
+            });
+        }
+        for t in &mut self.trajectories {
+            let rows = t.observations.iter_mut().chain(t.actions.iter_mut());
+            let values = rows.flatten().chain(t.rewards.iter_mut().flatten());
+            for v in values {
+                *v = round_significant(*v, digits);
+            }
+        }
+        Ok(())
+    }
+
     /// A few lines describing the set: environment, counts, dimensions,
     /// lengths, how episodes ended and the true returns when known.
     pub fn summary(&self) -> String {
@@ -481,6 +503,16 @@ struct Probe {
     version: Option<serde_json::Value>,
 }
 
+/// `v` rounded to `digits` (at least 1) significant digits.
+fn round_significant(v: f64, digits: usize) -> f64 {
+    if v == 0.0 || !v.is_finite() {
+        return v;
+    }
+    format!("{v:.*e}", digits.saturating_sub(1))
+        .parse()
+        .unwrap_or(v)
+}
+
 impl Probe {
     fn check(&self) -> Result<()> {
         let format = match &self.format {
@@ -559,4 +591,17 @@ fn json_error(text: &str, e: &serde_json::Error) -> Error {
         Category::Data | Category::Io => format!("{message}{}", path.describe_in()),
     };
     demo_err(trajectory, step, reason)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rounding_keeps_significant_digits() {
+        assert_eq!(round_significant(123.456789, 6), 123.457);
+        assert_eq!(round_significant(-0.000123456789, 3), -0.000123);
+        assert_eq!(round_significant(0.0, 6), 0.0);
+        assert!(round_significant(f64::NAN, 2).is_nan());
+    }
 }

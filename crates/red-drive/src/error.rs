@@ -24,6 +24,9 @@ pub enum Error {
         /// What went wrong.
         reason: String,
     },
+    /// The terminal of a recording failed (raw mode, reading keys, drawing).
+    #[error("terminal: {0}")]
+    Terminal(#[from] std::io::Error),
     /// A demonstration cannot be replayed on this track.
     #[error("replay: {reason}")]
     Replay {

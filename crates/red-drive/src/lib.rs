@@ -31,6 +31,8 @@ pub mod human;
 pub mod record;
 pub mod render;
 pub mod scenario;
+#[cfg(feature = "terminal")]
+pub mod terminal;
 pub mod track;
 
 pub use config::{ACT_DIM, CONTROL_HZ, DriveConfig, NUM_RAYS, OBS_DIM};

@@ -244,6 +244,11 @@ impl Recorder {
         self.status
     }
 
+    /// Whether the recorder was told the terminal reports key releases.
+    pub fn key_releases(&self) -> bool {
+        self.key_releases
+    }
+
     /// The car's state.
     pub fn car(&self) -> &CarState {
         self.env.inner().car()

@@ -231,6 +231,50 @@ pub fn demo_path(
     })
 }
 
+/// Colours of the paths drawn by [`demo_paths`], in turn.
+pub const PATH_COLOURS: [[u8; 3]; 6] = [
+    [20, 90, 200],
+    [230, 130, 0],
+    [30, 150, 60],
+    [150, 50, 170],
+    [0, 160, 170],
+    [120, 80, 40],
+];
+
+/// A [`PathSpec`] per trajectory of `demos` ([`demo_path`]), labelled
+/// `label` (with ` #i` when there are several) and coloured in turn from
+/// [`PATH_COLOURS`].
+///
+/// # Errors
+/// As [`replay`], naming the trajectory.
+pub fn demo_paths(
+    config: &DriveConfig,
+    demos: &red_core::Demos,
+    label: &str,
+    lidar_every: usize,
+) -> Result<Vec<PathSpec>> {
+    let n = demos.trajectories.len();
+    demos
+        .trajectories
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let name = if n == 1 {
+                label.to_string()
+            } else {
+                format!("{label} #{i}")
+            };
+            let colour = PATH_COLOURS[i % PATH_COLOURS.len()];
+            demo_path(config, t, name, colour, lidar_every).map_err(|e| match e {
+                Error::Replay { reason } => Error::Replay {
+                    reason: format!("trajectory {i}: {reason}"),
+                },
+                other => other,
+            })
+        })
+        .collect()
+}
+
 /// Clips the segment `p-q` to `a <= x <= b`.
 fn clip_x(p: (f64, f64), q: (f64, f64), a: f64, b: f64) -> Option<((f64, f64), (f64, f64))> {
     let (mut p, mut q) = (p, q);

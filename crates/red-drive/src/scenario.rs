@@ -21,9 +21,9 @@
 //! # Ok::<(), red_drive::Error>(())
 //! ```
 
-use red_core::Demos;
+use red_core::{Demos, EpisodeEnd, Trajectory};
 
-use crate::config::DriveConfig;
+use crate::config::{CONTROL_HZ, DriveConfig};
 use crate::render::replay;
 use crate::{ENV_ID, Error, Result};
 
@@ -96,6 +96,40 @@ pub fn check_fits(road: &DriveConfig, demos: &Demos) -> Result<()> {
         })?;
     }
     Ok(())
+}
+
+/// One line per trajectory of `demos` driven on `road`: steps, seconds,
+/// how it ended (`finish`, `CRASH`, or `time limit or stopped`) and the
+/// distance of the road covered (the sum of its rewards, the distance
+/// gained).
+pub fn episode_lines(demos: &Demos, road: &DriveConfig) -> Vec<String> {
+    demos
+        .trajectories
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let distance: f64 = t.rewards.as_ref().map_or(0.0, |r| r.iter().sum());
+            format!(
+                "episode {i}: {} steps ({:.1} s), {}, distance {distance:.1} m of {:.0} m ({:.1}%)",
+                t.actions.len(),
+                t.actions.len() as f64 / CONTROL_HZ,
+                ending(t, distance, road),
+                road.road_length,
+                100.0 * distance / road.road_length
+            )
+        })
+        .collect()
+}
+
+/// How an episode ended, from its end and distance.
+pub fn ending(t: &Trajectory, distance: f64, road: &DriveConfig) -> &'static str {
+    match t.end {
+        // The reward is the distance gained, so a finished episode sums to
+        // the road's length (up to the rounding of the file's numbers).
+        EpisodeEnd::Terminated if distance >= road.road_length - 1e-3 => "finish",
+        EpisodeEnd::Terminated => "CRASH",
+        EpisodeEnd::Truncated => "time limit or stopped",
+    }
 }
 
 /// The differences between two roads, as `field: a -> b` items (empty when

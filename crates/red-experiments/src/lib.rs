@@ -22,6 +22,7 @@
 //! # Ok::<(), red_experiments::Error>(())
 //! ```
 
+pub mod doctor;
 pub mod drive;
 pub mod error;
 pub mod mujoco;

@@ -127,6 +127,56 @@ impl EstimatorConfig {
             EstimatorConfig::KernelPca(_) => "kpca",
         }
     }
+
+    /// The config of kind `kind` (`rnd`, `ae` or `kpca`) from the JSON of
+    /// its fields (missing fields take their defaults), or its defaults
+    /// when `json` is `None`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for an unknown kind or JSON that is not a
+    /// config of that kind (an unknown field, a wrong type).
+    pub fn from_json(kind: &str, json: Option<&str>) -> Result<Self> {
+        fn parse<T: serde::de::DeserializeOwned + Default>(json: Option<&str>) -> Result<T> {
+            json.map_or_else(
+                || Ok(T::default()),
+                |text| {
+                    serde_json::from_str(text).map_err(|e| Error::InvalidConfig {
+                        field: "estimator config".into(),
+                        reason: e.to_string(),
+                    })
+                },
+            )
+        }
+        Ok(match kind {
+            "rnd" => EstimatorConfig::Rnd(parse(json)?),
+            "ae" => EstimatorConfig::Autoencoder(parse(json)?),
+            "kpca" => EstimatorConfig::KernelPca(parse(json)?),
+            other => {
+                return Err(Error::InvalidConfig {
+                    field: "estimator".into(),
+                    reason: format!("unknown kind `{other}` (rnd, ae or kpca)"),
+                });
+            }
+        })
+    }
+
+    /// Sets the training epochs (RND and AE).
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for kernel PCA, which has no epochs.
+    pub fn set_epochs(&mut self, epochs: usize) -> Result<()> {
+        match self {
+            EstimatorConfig::Rnd(c) => c.epochs = epochs,
+            EstimatorConfig::Autoencoder(c) => c.epochs = epochs,
+            EstimatorConfig::KernelPca(_) => {
+                return Err(Error::InvalidConfig {
+                    field: "epochs".into(),
+                    reason: "does not apply to kernel PCA".into(),
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 impl SupportEstimatorConfig for EstimatorConfig {
@@ -174,6 +224,23 @@ impl FittedEstimator {
             FittedEstimator::Rnd(_) => "rnd",
             FittedEstimator::Autoencoder(_) => "ae",
             FittedEstimator::KernelPca(_) => "kpca",
+        }
+    }
+
+    /// What the fit ended with: RND's and AE's final training losses,
+    /// kernel PCA's bandwidth and components.
+    pub fn describe(&self) -> String {
+        match self {
+            FittedEstimator::Rnd(m) => format!("final training loss {:?}", m.final_losses()),
+            FittedEstimator::Autoencoder(m) => {
+                format!("final training loss {:.4e}", m.final_loss())
+            }
+            FittedEstimator::KernelPca(m) => format!(
+                "bandwidth {:.4}, {} components ({:.4} of the trace)",
+                m.bandwidth(),
+                m.components(),
+                m.explained_share()
+            ),
         }
     }
 

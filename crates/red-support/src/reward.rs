@@ -26,6 +26,30 @@ pub enum Sigma1 {
     },
 }
 
+impl Sigma1 {
+    /// `σ1` for a model whose expert pairs score `scores`: the fixed value,
+    /// or the calibrated one ([`calibrate_sigma1`]).
+    ///
+    /// # Errors
+    /// As [`calibrate_sigma1`].
+    pub fn resolve(&self, scores: &[f64]) -> Result<f64> {
+        match *self {
+            Sigma1::Fixed(s) => Ok(s),
+            Sigma1::Calibrated { quantile, reward } => calibrate_sigma1(scores, quantile, reward),
+        }
+    }
+
+    /// How `σ1` was set, for a report: `given`, or the calibration rule.
+    pub fn describe(&self) -> String {
+        match *self {
+            Sigma1::Fixed(_) => "given".to_string(),
+            Sigma1::Calibrated { quantile, reward } => {
+                format!("calibrated: the {quantile} quantile of the scores gets reward {reward}")
+            }
+        }
+    }
+}
+
 /// Hyperparameters of [`RedReward`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]

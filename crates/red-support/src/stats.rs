@@ -25,6 +25,24 @@ pub fn quantile_sorted(sorted: &[f64], q: f64) -> f64 {
     sorted[lo] + t * (sorted[hi] - sorted[lo])
 }
 
+/// One line of `name`'s mean, min, quartiles, 0.1, 0.9 and 0.99
+/// quantiles and max, of values sorted ascending (not empty).
+pub fn summary_line(name: &str, sorted: &[f64]) -> String {
+    let q = |p| quantile_sorted(sorted, p);
+    format!(
+        "{name:<8} mean {:.4e}  min {:.4e}  q10 {:.4e}  q25 {:.4e}  median {:.4e}  q75 {:.4e}  q90 {:.4e}  q99 {:.4e}  max {:.4e}",
+        mean(sorted),
+        sorted[0],
+        q(0.1),
+        q(0.25),
+        q(0.5),
+        q(0.75),
+        q(0.9),
+        q(0.99),
+        sorted[sorted.len() - 1]
+    )
+}
+
 /// Mean of `values` (NaN when empty).
 pub fn mean(values: &[f64]) -> f64 {
     values.iter().sum::<f64>() / values.len() as f64

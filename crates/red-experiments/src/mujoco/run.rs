@@ -62,7 +62,9 @@ pub struct RunConfig {
     pub method: Method,
     /// Seed of every random stream of the run.
     pub seed: u64,
-    /// Budget in environment steps (not used by `bc`).
+    /// Budget in environment steps (not used by `bc`). Default: 2,000,000
+    /// (the release's README example); 5,000,000 for `expert` (the paper's
+    /// budget, which its experts need to reach the release's returns).
     pub steps: u64,
     /// Demonstration file (every method but `expert`).
     pub demo: Option<PathBuf>,
@@ -194,7 +196,11 @@ impl RunConfig {
             env,
             method,
             seed: 0,
-            steps: 2_000_000,
+            steps: if method == Method::Expert {
+                5_000_000
+            } else {
+                2_000_000
+            },
             demo: None,
             trpo,
             rnd,
