@@ -57,6 +57,7 @@ pub mod import;
 mod json_loc;
 pub mod reward;
 pub mod seeding;
+pub mod simple_domain;
 pub mod space;
 pub mod wrappers;
 
@@ -64,7 +65,7 @@ pub use check::{CheckReport, check_env};
 pub use demo::{DemoSource, Demos, EpisodeEnd, Trajectory};
 pub use env::{Env, Info, Step, TRUE_REWARD};
 pub use error::{Error, Result};
-pub use reward::RewardModel;
+pub use reward::{DifferentiableReward, RewardModel};
 pub use seeding::{Seeder, Stream};
 pub use space::{BoxSpace, Space};
 pub use wrappers::{RewardWrapper, TimeLimit};

@@ -1,6 +1,6 @@
 //! Reward models: a learned reward over state-action pairs.
 
-use ndarray::{Array1, ArrayView2};
+use ndarray::{Array1, Array2, ArrayView2};
 
 use crate::Result;
 
@@ -34,6 +34,28 @@ pub trait RewardModel {
     }
 
     /// Whether [`RewardModel::update`] changes the model.
+    fn is_adaptive(&self) -> bool {
+        false
+    }
+}
+
+/// A reward `r(s, a)` with its gradient with respect to the action, for
+/// learners that differentiate through the reward (SVG(1)).
+pub trait DifferentiableReward {
+    /// Rewards `(n,)` of states `(n, obs_dim)` and actions `(n, act_dim)`,
+    /// and `dr/da`, `(n, act_dim)`.
+    ///
+    /// # Errors
+    /// Shape errors of the implementation.
+    fn reward_and_grad(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<(Array1<f64>, Array2<f64>)>;
+
+    /// Whether the reward changes during training (GAIL's discriminator,
+    /// GMMIL's witness). A learner then recomputes the rewards of replayed
+    /// transitions at each value update instead of using the stored ones.
     fn is_adaptive(&self) -> bool {
         false
     }

@@ -23,6 +23,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use ndarray::{Array2, ArrayView2};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use red_core::DifferentiableReward;
 use red_core::checkpoint::{load_checkpoint, save_checkpoint};
 use red_core::{DemoSource, Demos, Env, RewardModel as _};
 use red_drive::env::{INFO_COLLISION, INFO_SUCCESS};
@@ -33,17 +34,17 @@ use red_drive::{
     render_png,
 };
 use red_rl::bc::{BcConfig, behavior_clone};
-use red_rl::gail::{Gail, GailConfig};
-use red_rl::gmmil::{Gmmil, GmmilConfig};
+use red_rl::gail::GailConfig;
+use red_rl::gmmil::GmmilConfig;
 use red_rl::normalize::ObsNormalizer;
 use red_rl::policy::{GaussianPolicy, GaussianPolicyConfig};
-use red_rl::svg::{DifferentiableReward, Svg1, SvgConfig};
+use red_rl::svg::{Svg1, SvgConfig};
 use red_support::{
-    Autoencoder, AutoencoderConfig, RedReward, Rnd, RndConfig, Sigma1, SupportEstimatorConfig,
-    TerminalHeuristic, TerminalHeuristicConfig, calibrate_sigma1, held_out_scores, no_progress,
+    AutoencoderConfig, ExpertScores, RndConfig, Sigma1, TerminalHeuristic, TerminalHeuristicConfig,
 };
 use serde::{Deserialize, Serialize};
 
+use crate::imitation::{self, ImitationReward, Method, RewardSettings};
 use crate::plot::{Panel, Series, draw_panels, mean_std, palette};
 use crate::{Error, Progress, Result, ResultExt, RunDir};
 
@@ -452,32 +453,72 @@ pub fn load_demo(
     Ok((demos, road, note))
 }
 
-/// A method's reward during SVG(1)-ER.
-#[derive(Clone, Serialize, Deserialize)]
-enum DriveReward {
-    Red(RedReward<Rnd>),
-    Ae(RedReward<Autoencoder>),
-    Gail(Box<Gail>),
-    Gmmil(Box<Gmmil>),
-}
+/// The checkpoint format of a method's reward, as it was before the
+/// experiments shared [`ImitationReward`]: `{"Red": RedReward<Rnd>}`,
+/// `{"Ae": RedReward<Autoencoder>}`, `{"Gail": ..}` or `{"Gmmil": ..}`, so
+/// that earlier checkpoints resume.
+mod stored_reward {
+    use red_rl::gail::Gail;
+    use red_rl::gmmil::Gmmil;
+    use red_support::{Autoencoder, FittedEstimator, RedReward, Rnd};
+    use serde::de::Error as _;
+    use serde::ser::Error as _;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-impl DriveReward {
-    fn as_dyn(&self) -> &dyn DifferentiableReward {
-        match self {
-            Self::Red(r) => r,
-            Self::Ae(r) => r,
-            Self::Gail(g) => g.as_ref(),
-            Self::Gmmil(g) => g.as_ref(),
-        }
+    use crate::imitation::ImitationReward;
+
+    #[derive(Serialize, Deserialize)]
+    enum Stored {
+        Red(RedReward<Rnd>),
+        Ae(RedReward<Autoencoder>),
+        Gail(Box<Gail>),
+        Gmmil(Box<Gmmil>),
     }
 
-    fn update(&mut self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Result<()> {
-        match self {
-            Self::Gail(g) => g.update(states, actions)?,
-            Self::Gmmil(g) => g.update(states, actions)?,
-            Self::Red(_) | Self::Ae(_) => {}
+    pub fn serialize<S: Serializer>(r: &ImitationReward, s: S) -> Result<S::Ok, S::Error> {
+        let stored = match r {
+            ImitationReward::Support(r) => {
+                let sigma1 = r.sigma1();
+                match r.model() {
+                    FittedEstimator::Rnd(m) => {
+                        RedReward::with_sigma1(m.clone(), sigma1).map(Stored::Red)
+                    }
+                    FittedEstimator::Autoencoder(m) => {
+                        RedReward::with_sigma1(m.clone(), sigma1).map(Stored::Ae)
+                    }
+                    FittedEstimator::KernelPca(_) => {
+                        return Err(S::Error::custom("kernel PCA is not a driving method"));
+                    }
+                }
+                .map_err(S::Error::custom)?
+            }
+            ImitationReward::Gail(g) => Stored::Gail(g.clone()),
+            ImitationReward::Gmmil(g) => Stored::Gmmil(g.clone()),
+        };
+        stored.serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<ImitationReward, D::Error> {
+        let support = |r: Result<RedReward<FittedEstimator>, red_support::Error>| {
+            r.map(|r| ImitationReward::Support(Box::new(r)))
+                .map_err(D::Error::custom)
+        };
+        match Stored::deserialize(d)? {
+            Stored::Red(r) => {
+                let sigma1 = r.sigma1();
+                support(RedReward::with_sigma1(
+                    FittedEstimator::Rnd(r.into_model()),
+                    sigma1,
+                ))
+            }
+            Stored::Ae(r) => {
+                let sigma1 = r.sigma1();
+                let model = FittedEstimator::Autoencoder(r.into_model());
+                support(RedReward::with_sigma1(model, sigma1))
+            }
+            Stored::Gail(g) => Ok(ImitationReward::Gail(g)),
+            Stored::Gmmil(g) => Ok(ImitationReward::Gmmil(g)),
         }
-        Ok(())
     }
 }
 
@@ -568,7 +609,8 @@ struct Selection {
 #[derive(Clone, Serialize, Deserialize)]
 struct MethodState {
     method: String,
-    reward: DriveReward,
+    #[serde(with = "stored_reward")]
+    reward: ImitationReward,
     terminal: Option<TerminalHeuristic>,
     svg: Svg1,
     rng: ChaCha8Rng,
@@ -758,7 +800,8 @@ fn method_seeds(seed: u64, method: &str) -> (u64, u64) {
     (seed.wrapping_add(1 + 2 * k), seed.wrapping_add(2 + 2 * k))
 }
 
-/// Fits the method's reward.
+/// Fits the method's reward ([`crate::imitation::fit_reward`], `σ1` from
+/// held-out expert scores) and, for RED and AE, the terminal heuristic.
 fn fit_reward(
     cfg: &DriveTrainConfig,
     method: &str,
@@ -766,54 +809,48 @@ fn fit_reward(
     es: ArrayView2<'_, f64>,
     ea: ArrayView2<'_, f64>,
     progress: &mut dyn Progress,
-) -> Result<(DriveReward, Option<TerminalHeuristic>)> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    fn red<C: SupportEstimatorConfig>(
-        est: &C,
-        cfg: &DriveTrainConfig,
-        es: ArrayView2<'_, f64>,
-        ea: ArrayView2<'_, f64>,
-        rng: &mut ChaCha8Rng,
-        progress: &mut dyn Progress,
-    ) -> Result<(RedReward<C::Model>, TerminalHeuristic)> {
-        let model = est.fit(es, ea, rng, &mut no_progress)?;
-        let scores = held_out_scores(est, es, ea, cfg.sigma1.folds, rng)?;
-        let sigma1 = calibrate_sigma1(&scores.to_vec(), cfg.sigma1.quantile, cfg.sigma1.reward)?;
-        let reward = RedReward::with_sigma1(model, sigma1)?;
-        let heuristic = TerminalHeuristic::new(&cfg.terminal, &reward, es, ea)?;
-        progress.note(&format!(
-            "  sigma1 = {sigma1:.4}, mean expert reward {:.3}",
-            heuristic.expert_mean_reward()
-        ));
-        Ok((reward, heuristic))
+) -> Result<(ImitationReward, Option<TerminalHeuristic>)> {
+    let m: Method = method.parse().map_err(|e: String| invalid("methods", e))?;
+    match m {
+        Method::Red => progress.note(&format!(
+            "red: fitting RND on {} expert pairs ...",
+            es.nrows()
+        )),
+        Method::Ae => progress.note(&format!(
+            "ae: fitting the autoencoder on {} expert pairs ...",
+            es.nrows()
+        )),
+        _ => {}
     }
-    Ok(match method {
-        "red" => {
+    let settings = RewardSettings {
+        rnd: &cfg.rnd,
+        autoencoder: &cfg.autoencoder,
+        sigma1: Sigma1::Calibrated {
+            quantile: cfg.sigma1.quantile,
+            reward: cfg.sigma1.reward,
+        },
+        scores: ExpertScores::HeldOut {
+            folds: cfg.sigma1.folds,
+        },
+        gail: &cfg.gail,
+        gmmil: &cfg.gmmil,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let reward = imitation::fit_reward(m, &settings, es, ea, &mut rng, seed)?
+        .ok_or_else(|| invalid("methods", format!("no reward for `{method}`")))?;
+    let terminal = match reward.support() {
+        Some(r) => {
+            let heuristic = TerminalHeuristic::new(&cfg.terminal, r, es, ea)?;
             progress.note(&format!(
-                "red: fitting RND on {} expert pairs ...",
-                es.nrows()
+                "  sigma1 = {:.4}, mean expert reward {:.3}",
+                r.sigma1(),
+                heuristic.expert_mean_reward()
             ));
-            let (r, h) = red(&cfg.rnd, cfg, es, ea, &mut rng, progress)?;
-            (DriveReward::Red(r), Some(h))
+            Some(heuristic)
         }
-        "ae" => {
-            progress.note(&format!(
-                "ae: fitting the autoencoder on {} expert pairs ...",
-                es.nrows()
-            ));
-            let (r, h) = red(&cfg.autoencoder, cfg, es, ea, &mut rng, progress)?;
-            (DriveReward::Ae(r), Some(h))
-        }
-        "gail" => (
-            DriveReward::Gail(Box::new(Gail::new(cfg.gail.clone(), es, ea, seed)?)),
-            None,
-        ),
-        "gmmil" => (
-            DriveReward::Gmmil(Box::new(Gmmil::new(cfg.gmmil.clone(), es, ea)?)),
-            None,
-        ),
-        other => return Err(invalid("methods", format!("no reward for `{other}`"))),
-    })
+        None => None,
+    };
+    Ok((reward, terminal))
 }
 
 fn stack(rows: &[(Vec<f64>, Vec<f64>)]) -> (Array2<f64>, Array2<f64>) {
@@ -834,7 +871,7 @@ fn check(run: &DriveRunConfig, st: &mut MethodState) -> Result<()> {
             &run.drive,
             policy,
             SELECT_SEED + k as u64,
-            Some((st.reward.as_dyn(), st.terminal.as_ref())),
+            Some((&st.reward, st.terminal.as_ref())),
         )?;
         own += r.own_return / cfg.select_episodes as f64;
         dist += r.distance / cfg.select_episodes as f64;
@@ -900,7 +937,7 @@ fn train_method(
             } = &mut *st;
             let term = |r: f64| terminal.as_ref().map_or(0.0, |t| t.penalty(r));
             let at = svg.env_steps();
-            svg.run_episode(&mut env, reward.as_dyn(), None, &term, left, rng)
+            svg.run_episode(&mut env, &*reward, None, &term, left, rng)
                 .map_err(|e| step_err(e, at))?
         };
         if ep.finished {
@@ -915,7 +952,7 @@ fn train_method(
             st.curve.push((e.env_steps as f64, avg));
             message = format!("distance (last 10) {avg:.0} m");
         }
-        if st.reward.as_dyn().is_adaptive() {
+        if DifferentiableReward::is_adaptive(&st.reward) {
             for (s, a) in ep.states.rows().into_iter().zip(ep.actions.rows()) {
                 st.pending.push((s.to_vec(), a.to_vec()));
             }

@@ -25,6 +25,7 @@
 pub mod doctor;
 pub mod drive;
 pub mod error;
+pub mod imitation;
 pub mod mujoco;
 pub mod plot;
 pub mod run_dir;

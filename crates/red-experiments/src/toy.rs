@@ -21,60 +21,21 @@ use serde::{Deserialize, Serialize};
 
 use red_core::{Env, RewardModel, Seeder, Stream};
 use red_rl::dqn::{Dqn, DqnConfig};
-use red_rl::gail::{Gail, GailConfig};
-use red_rl::gmmil::{Gmmil, GmmilConfig};
-use red_rl::simple_domain::{
+use red_rl::gail::GailConfig;
+use red_rl::gmmil::GmmilConfig;
+use red_core::simple_domain::{
     ActionValues, action_value, expert_demos, expert_demos_stratified, simple_domain,
     to_action_values,
 };
 use red_support::{
-    Autoencoder, AutoencoderConfig, RedReward, RedRewardConfig, Rnd, RndConfig, Sigma1,
-    SupportEstimatorConfig, SupportModel, calibrate_sigma1, held_out_scores, no_progress,
+    AutoencoderConfig, ExpertScores, RedReward, RedRewardConfig, RndConfig, SupportModel,
 };
 
+use crate::imitation::{ImitationReward, RewardSettings, fit_reward};
 use crate::plot::{Panel, Series, draw_panels, mean_std};
 use crate::{Error, Progress, Result, ResultExt, RunDir};
 
-/// The imitation methods of the simple domain.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Method {
-    /// Random Expert Distillation (RND support estimate, `exp(-σ1 L)`).
-    Red,
-    /// The autoencoder support estimate, `exp(-σ1 L)`.
-    Ae,
-    /// Generative adversarial imitation learning.
-    Gail,
-    /// Generative moment matching imitation learning.
-    Gmmil,
-}
-
-impl Method {
-    /// The name tables and plots use.
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Red => "RED",
-            Method::Ae => "AE",
-            Method::Gail => "GAIL",
-            Method::Gmmil => "GMMIL",
-        }
-    }
-}
-
-impl std::str::FromStr for Method {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s.trim().to_ascii_lowercase().as_str() {
-            "red" => Ok(Self::Red),
-            "ae" => Ok(Self::Ae),
-            "gail" => Ok(Self::Gail),
-            "gmmil" => Ok(Self::Gmmil),
-            other => Err(format!(
-                "unknown method `{other}` (the toy has red, ae, gail, gmmil)"
-            )),
-        }
-    }
-}
+pub use crate::imitation::Method;
 
 /// Which expert scores calibrate σ1.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -207,6 +168,12 @@ impl ToyConfig {
         if self.methods.is_empty() {
             return bad("methods", "give at least one method");
         }
+        if let Some(m) = self.methods.iter().find(|m| !m.imitates_by_reward()) {
+            return bad(
+                "methods",
+                &format!("`{}`: the toy has red, ae, gail, gmmil", m.name()),
+            );
+        }
         if self.seeds == 0 {
             return bad("seeds", "must be at least 1");
         }
@@ -259,69 +226,30 @@ struct RunResult {
     alpha: Option<f64>,
 }
 
-enum ToyReward {
-    Red(ActionValues<RedReward<Rnd>>),
-    Ae(ActionValues<RedReward<Autoencoder>>),
-    Gail(Box<ActionValues<Gail>>),
-    Gmmil(ActionValues<Gmmil>),
+/// The plotted reward of `(s, a)` for a batch: the support score `L` for
+/// RED and AE (Fig. 3 plots `1 - α1 L`), the reward for the others.
+fn plotted(
+    reward: &ActionValues<ImitationReward>,
+    s: &Array2<f64>,
+    a: &Array2<f64>,
+) -> Result<Array1<f64>> {
+    Ok(match reward.0.support() {
+        Some(r) => r
+            .model()
+            .score(s.view(), to_action_values(a.view()).view())?,
+        None => reward.rewards(s.view(), a.view())?,
+    })
 }
 
-impl ToyReward {
-    fn as_model(&mut self) -> &mut dyn RewardModel {
+impl Calibration {
+    /// The expert scores this calibration uses with `n` expert pairs
+    /// (held out: 5 folds, or one per pair below 5 pairs).
+    fn scores(self, n: usize) -> ExpertScores {
         match self {
-            ToyReward::Red(r) => r,
-            ToyReward::Ae(r) => r,
-            ToyReward::Gail(r) => r.as_mut(),
-            ToyReward::Gmmil(r) => r,
+            Calibration::Train => ExpertScores::InSample,
+            Calibration::HeldOut => ExpertScores::HeldOut { folds: n.min(5) },
         }
     }
-
-    /// The plotted reward of `(s, a)` for a batch.
-    fn plotted(&mut self, s: &Array2<f64>, a: &Array2<f64>) -> Result<Array1<f64>> {
-        Ok(match self {
-            ToyReward::Red(r) => {
-                r.0.model()
-                    .score(s.view(), to_action_values(a.view()).view())?
-            }
-            ToyReward::Ae(r) => {
-                r.0.model()
-                    .score(s.view(), to_action_values(a.view()).view())?
-            }
-            other => other.as_model().rewards(s.view(), a.view())?,
-        })
-    }
-
-    fn sigma1(&self) -> Option<f64> {
-        match self {
-            ToyReward::Red(r) => Some(r.0.sigma1()),
-            ToyReward::Ae(r) => Some(r.0.sigma1()),
-            _ => None,
-        }
-    }
-}
-
-/// Fits the support estimator and sets σ1 by the 0.9-quantile rule of
-/// [`RedRewardConfig::default`] on the chosen expert scores.
-fn fit_red_reward<C: SupportEstimatorConfig>(
-    config: &C,
-    calibration: Calibration,
-    es: &Array2<f64>,
-    ea: &Array2<f64>,
-    rng: &mut rand_chacha::ChaCha8Rng,
-) -> Result<RedReward<C::Model>> {
-    let model = config.fit(es.view(), ea.view(), rng, &mut no_progress)?;
-    let scores = match calibration {
-        Calibration::Train => model.score(es.view(), ea.view())?,
-        Calibration::HeldOut => {
-            held_out_scores(config, es.view(), ea.view(), es.nrows().min(5), rng)?
-        }
-    };
-    let (quantile, reward) = match RedRewardConfig::default().sigma1 {
-        Sigma1::Calibrated { quantile, reward } => (quantile, reward),
-        Sigma1::Fixed(_) => (0.9, 0.9),
-    };
-    let sigma1 = calibrate_sigma1(&scores.to_vec(), quantile, reward)?;
-    Ok(RedReward::with_sigma1(model, sigma1)?)
 }
 
 fn ae_config(config: &ToyConfig) -> AutoencoderConfig {
@@ -378,27 +306,28 @@ fn run_one(config: &ToyConfig, job: &Job, on_eval: &dyn Fn()) -> Result<RunResul
     let (es, ea_index) = demos.pairs();
     let ea = to_action_values(ea_index.view());
     let mut est_rng = seeder.rng(Stream::Estimator);
-    let mut reward = match job.method {
-        Method::Red => {
-            let cfg = rnd_config(config);
-            let r = fit_red_reward(&cfg, config.calibration, &es, &ea, &mut est_rng)?;
-            ToyReward::Red(ActionValues(r))
-        }
-        Method::Ae => {
-            let cfg = ae_config(config);
-            let r = fit_red_reward(&cfg, config.calibration, &es, &ea, &mut est_rng)?;
-            ToyReward::Ae(ActionValues(r))
-        }
-        Method::Gail => {
-            let seed = seeder.derive(Stream::Estimator);
-            let g = Gail::new(gail_config(), es.view(), ea.view(), seed)?;
-            ToyReward::Gail(Box::new(ActionValues(g)))
-        }
-        Method::Gmmil => {
-            let g = Gmmil::new(GmmilConfig::default(), es.view(), ea.view())?;
-            ToyReward::Gmmil(ActionValues(g))
-        }
+    let (rnd, autoencoder) = (rnd_config(config), ae_config(config));
+    let settings = RewardSettings {
+        rnd: &rnd,
+        autoencoder: &autoencoder,
+        sigma1: RedRewardConfig::default().sigma1,
+        scores: config.calibration.scores(es.nrows()),
+        gail: &gail_config(),
+        gmmil: &GmmilConfig::default(),
     };
+    let gail_seed = seeder.derive(Stream::Estimator);
+    let fitted = fit_reward(
+        job.method,
+        &settings,
+        es.view(),
+        ea.view(),
+        &mut est_rng,
+        gail_seed,
+    )?;
+    let mut reward = ActionValues(fitted.ok_or_else(|| Error::InvalidConfig {
+        field: "methods".into(),
+        reason: format!("`{}` has no reward in the toy", job.method.label()),
+    })?);
 
     let mut eval_rng = seeder.rng(Stream::Eval);
     let eval_states =
@@ -425,23 +354,13 @@ fn run_one(config: &ToyConfig, job: &Job, on_eval: &dyn Fn()) -> Result<RunResul
     let mut env_seed = Some(seeder.derive(Stream::Env));
     while dqn.steps() < config.steps {
         let chunk = config.eval_interval.min(config.steps - dqn.steps());
-        dqn.train(
-            &mut env,
-            reward.as_model(),
-            chunk,
-            env_seed.take(),
-            &mut |_| {},
-        )?;
+        dqn.train(&mut env, &mut reward, chunk, env_seed.take(), &mut |_| {})?;
         curve.push((dqn.steps(), evaluate(&dqn)));
         on_eval();
     }
 
-    let minus_eval = reward
-        .as_model()
-        .rewards(eval_states.view(), Array2::zeros((EVAL_STATES, 1)).view())?;
-    let plus_eval = reward
-        .as_model()
-        .rewards(eval_states.view(), Array2::ones((EVAL_STATES, 1)).view())?;
+    let minus_eval = reward.rewards(eval_states.view(), Array2::zeros((EVAL_STATES, 1)).view())?;
+    let plus_eval = reward.rewards(eval_states.view(), Array2::ones((EVAL_STATES, 1)).view())?;
     let reward_argmax = eval_states
         .column(0)
         .iter()
@@ -453,10 +372,10 @@ fn run_one(config: &ToyConfig, job: &Job, on_eval: &dyn Fn()) -> Result<RunResul
     let grid = Array2::from_shape_fn((GRID, 1), |(i, _)| {
         -1.0 + 2.0 * i as f64 / (GRID - 1) as f64
     });
-    let mut minus = reward.plotted(&grid, &Array2::zeros((GRID, 1)))?;
-    let mut plus = reward.plotted(&grid, &Array2::ones((GRID, 1)))?;
+    let mut minus = plotted(&reward, &grid, &Array2::zeros((GRID, 1)))?;
+    let mut plus = plotted(&reward, &grid, &Array2::ones((GRID, 1)))?;
     let mut alpha = None;
-    if matches!(reward, ToyReward::Red(_) | ToyReward::Ae(_)) {
+    if reward.0.support().is_some() {
         // The paper plots 1 - α1 L without giving α1; α1 = 1 / max L over
         // the plotted pairs puts both curves in [0, 1].
         let max_l = minus.iter().chain(plus.iter()).copied().fold(0.0, f64::max);
@@ -470,7 +389,7 @@ fn run_one(config: &ToyConfig, job: &Job, on_eval: &dyn Fn()) -> Result<RunResul
         reward_argmax,
         reward_minus: minus.to_vec(),
         reward_plus: plus.to_vec(),
-        sigma1: reward.sigma1(),
+        sigma1: reward.0.support().map(RedReward::sigma1),
         alpha,
     })
 }
@@ -655,7 +574,7 @@ fn run_grid(
                     };
                     let outcome = run_one(&config, job, &on_eval)
                         .with_context(|| {
-                            format!("run {} n={} seed={}", job.method.name(), job.n, job.seed)
+                            format!("run {} n={} seed={}", job.method.label(), job.n, job.seed)
                         })
                         .and_then(|r| {
                             let mut s = state.lock().map_err(|_| poisoned())?;
@@ -744,7 +663,7 @@ fn write_config(config: &ToyConfig, dir: &RunDir) -> Result<()> {
             red_reward: RedRewardConfig::default(),
             gail: gail_config(),
             gmmil: GmmilConfig::default(),
-            episode_length: red_rl::simple_domain::EPISODE_LENGTH,
+            episode_length: red_core::simple_domain::EPISODE_LENGTH,
             eval_states: EVAL_STATES,
         },
     )
@@ -759,7 +678,7 @@ fn csv_metrics(jobs: &[Job], done: &[RunResult]) -> String {
             let _ = writeln!(
                 f,
                 "{},{},{},{},{:.6}",
-                job.method.name(),
+                job.method.label(),
                 job.n,
                 job.seed,
                 steps,
@@ -783,7 +702,7 @@ fn csv_finals(jobs: &[Job], done: &[RunResult]) -> String {
         let _ = writeln!(
             f,
             "{},{},{},{last:.6},{:.6},{sigma}",
-            job.method.name(),
+            job.method.label(),
             job.n,
             job.seed,
             r.reward_argmax
@@ -803,7 +722,7 @@ fn csv_reward_curves(jobs: &[Job], done: &[RunResult]) -> String {
             let _ = writeln!(
                 f,
                 "{},{},{},{},{:.4},{:.6},{:.6}",
-                job.method.name(),
+                job.method.label(),
                 job.n,
                 job.seed,
                 sigma,
@@ -844,7 +763,7 @@ fn plot_fig2(config: &ToyConfig, jobs: &[Job], done: &[RunResult], out: &Path) -
                 band.push((steps as f64, m - s, m + s));
             }
             series.push(Series {
-                label: method.name().into(),
+                label: method.label().into(),
                 points,
                 band,
             });
@@ -897,7 +816,7 @@ fn plot_fig3(config: &ToyConfig, jobs: &[Job], done: &[RunResult], out: &Path) -
             _ => "learned reward (end of training)".into(),
         };
         panels.push(Panel {
-            title: format!("{} (n = {n}, seed 0)", method.name()),
+            title: format!("{} (n = {n}, seed 0)", method.label()),
             x_label: "state s".into(),
             y_label,
             series: vec![
@@ -946,7 +865,7 @@ fn final_table(config: &ToyConfig, jobs: &[Job], done: &[RunResult]) -> String {
     header.push('\n');
     s.push_str(&header);
     for method in methods_sorted(config) {
-        s.push_str(&format!("| {} |", method.name()));
+        s.push_str(&format!("| {} |", method.label()));
         for &n in &config.n {
             let finals: Vec<f64> = jobs
                 .iter()
@@ -962,7 +881,7 @@ fn final_table(config: &ToyConfig, jobs: &[Job], done: &[RunResult]) -> String {
     s.push_str("\nTrue mean reward per step of argmax_a r(s, a) under each final learned reward (what a perfect learner would reach on it); mean ± std over seeds\n\n");
     s.push_str(&header);
     for method in methods_sorted(config) {
-        s.push_str(&format!("| {} |", method.name()));
+        s.push_str(&format!("| {} |", method.label()));
         for &n in &config.n {
             let vals: Vec<f64> = jobs
                 .iter()

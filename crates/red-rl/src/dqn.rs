@@ -423,7 +423,7 @@ fn argmax(xs: &[f32]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::simple_domain::{action_value, simple_domain};
+    use red_core::simple_domain::{action_value, simple_domain};
     use ndarray::Array1;
 
     /// The true reward of the simple domain, as a reward model: DQN must

@@ -19,8 +19,8 @@ use serde::{Deserialize, Serialize};
 use red_core::RewardModel;
 use red_nets::{Activation, Adam, AdamConfig, Gradients, Init, Mlp, MlpConfig, Optimizer, Tape};
 
-use crate::svg::DifferentiableReward;
 use crate::{Error, Result};
+use red_core::DifferentiableReward;
 
 /// Settings of [`Gail`]. Defaults are OpenAI baselines' GAIL
 /// (`run_mujoco.py`: adversary hidden size 100, entropy coefficient 1e-3,
@@ -335,8 +335,9 @@ impl Gail {
 /// discriminator is differentiated with respect to its input (through the
 /// input standardisation), `d/dl [-ln(1 - sigmoid(l) + 1e-8)] = D (1 - D) /
 /// (1 - D + 1e-8)`.
-impl DifferentiableReward for Gail {
-    fn reward_and_grad(
+impl Gail {
+    /// [`DifferentiableReward::reward_and_grad`] with this crate's errors.
+    fn reward_grad(
         &self,
         states: ArrayView2<'_, f64>,
         actions: ArrayView2<'_, f64>,
@@ -359,6 +360,16 @@ impl DifferentiableReward for Gail {
             dx[[i, o + j]] as f64 / self.std[o + j]
         });
         Ok((r, da))
+    }
+}
+
+impl DifferentiableReward for Gail {
+    fn reward_and_grad(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> red_core::Result<(Array1<f64>, Array2<f64>)> {
+        self.reward_grad(states, actions).map_err(into_core)
     }
 
     fn is_adaptive(&self) -> bool {

@@ -22,8 +22,8 @@ use serde::{Deserialize, Serialize};
 use red_core::RewardModel;
 
 use crate::gail::{concat_pairs, into_core};
-use crate::svg::DifferentiableReward;
 use crate::{Error, Result};
+use red_core::DifferentiableReward;
 
 /// Settings of [`Gmmil`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -216,8 +216,9 @@ fn median_sq_dist(a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>, same: bool, ca
 /// GMMIL's witness reward with its action gradient, for SVG(1)-ER:
 /// `d/dx exp(-|x-y|^2 / h) = -2 (x - y) / h exp(-|x-y|^2 / h)`, averaged
 /// over the expert pairs minus the same over the latest policy batch.
-impl DifferentiableReward for Gmmil {
-    fn reward_and_grad(
+impl Gmmil {
+    /// [`DifferentiableReward::reward_and_grad`] with this crate's errors.
+    fn reward_grad(
         &self,
         states: ArrayView2<'_, f64>,
         actions: ArrayView2<'_, f64>,
@@ -260,6 +261,16 @@ impl DifferentiableReward for Gmmil {
             r[i] -= self.offset;
         }
         Ok((r, g))
+    }
+}
+
+impl DifferentiableReward for Gmmil {
+    fn reward_and_grad(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> red_core::Result<(Array1<f64>, Array2<f64>)> {
+        self.reward_grad(states, actions).map_err(into_core)
     }
 
     fn is_adaptive(&self) -> bool {

@@ -13,7 +13,6 @@ pub mod normalize;
 pub mod policy;
 pub mod replay;
 pub mod rollout;
-pub mod simple_domain;
 pub mod svg;
 pub mod trpo;
 

@@ -26,9 +26,9 @@
 //! acting time), treated as a constant, as in Heess et al.
 //!
 //! The reward and its action-gradient come from a [`DifferentiableReward`],
-//! implemented for RED's [`RedReward`].
+//! implemented for RED's `red_support::RedReward`, GAIL and GMMIL.
 
-use ndarray::{Array1, Array2, ArrayView2, Axis, concatenate, s};
+use ndarray::{Array2, ArrayView2, Axis, concatenate, s};
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 
@@ -37,42 +37,13 @@ use red_nets::{
     Activation, Adam, AdamConfig, Gradients, Init, Mlp, MlpConfig, Optimizer, Tape, Workspace,
     clip_grad_norm, mse_loss,
 };
-use red_support::{RedReward, SupportModel};
 
 use crate::policy::{GaussianPolicy, PolicyWorkspace};
 use crate::{Error, Result};
 
-/// A reward `r(s, a)` with its gradient with respect to the action.
-pub trait DifferentiableReward {
-    /// Rewards `(n,)` of states `(n, obs_dim)` and actions `(n, act_dim)`,
-    /// and `dr/da`, `(n, act_dim)`.
-    ///
-    /// # Errors
-    /// Shape errors of the implementation.
-    fn reward_and_grad(
-        &self,
-        states: ArrayView2<'_, f64>,
-        actions: ArrayView2<'_, f64>,
-    ) -> Result<(Array1<f64>, Array2<f64>)>;
-
-    /// Whether the reward changes during training (GAIL's discriminator,
-    /// GMMIL's witness). [`Svg1`] then recomputes the rewards of replayed
-    /// transitions at each value update instead of using the stored ones.
-    fn is_adaptive(&self) -> bool {
-        false
-    }
-}
-
-impl<M: SupportModel> DifferentiableReward for RedReward<M> {
-    fn reward_and_grad(
-        &self,
-        states: ArrayView2<'_, f64>,
-        actions: ArrayView2<'_, f64>,
-    ) -> Result<(Array1<f64>, Array2<f64>)> {
-        self.reward_grad_action(states, actions)
-            .map_err(|e| Error::Core(red_core::Error::from(e)))
-    }
-}
+// The trait lives beside `RewardModel` in red-core; re-exported here where
+// SVG(1) users have always found it.
+pub use red_core::DifferentiableReward;
 
 /// Settings of [`Svg1`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -90,7 +90,7 @@ impl DifferentiableReward for ReachReward {
         &self,
         states: ArrayView2<'_, f64>,
         actions: ArrayView2<'_, f64>,
-    ) -> red_rl::Result<(Array1<f64>, Array2<f64>)> {
+    ) -> red_core::Result<(Array1<f64>, Array2<f64>)> {
         let n = states.nrows();
         let mut r = Array1::zeros(n);
         let mut g = Array2::zeros((n, 2));
@@ -296,7 +296,7 @@ impl DifferentiableReward for BrokenReward {
         &self,
         states: ArrayView2<'_, f64>,
         actions: ArrayView2<'_, f64>,
-    ) -> red_rl::Result<(Array1<f64>, Array2<f64>)> {
+    ) -> red_core::Result<(Array1<f64>, Array2<f64>)> {
         let (mut r, g) = ReachReward.reward_and_grad(states, actions)?;
         if states.nrows() == 1 {
             let left = self.after.get();

@@ -53,7 +53,9 @@ pub use estimator::{
 };
 pub use input::InputMap;
 pub use kernel_pca::{Bandwidth, Components, KernelKind, KernelPca, KernelPcaConfig};
-pub use reward::{RedReward, RedRewardConfig, Sigma1, calibrate_sigma1};
+pub use reward::{
+    ExpertScores, RedReward, RedRewardConfig, Sigma1, calibrate_sigma1, fit_red_reward,
+};
 pub use rnd::{Rnd, RndConfig, RndPair};
 pub use terminal::{TerminalHeuristic, TerminalHeuristicConfig};
 

@@ -4,7 +4,8 @@
 use ndarray::{Array1, Array2, ArrayView2, Axis};
 use serde::{Deserialize, Serialize};
 
-use crate::estimator::SupportModel;
+use crate::cross_val::held_out_scores;
+use crate::estimator::{SupportEstimatorConfig, SupportModel, no_progress};
 use crate::{Error, Result, stats};
 
 /// How `σ1` is set.
@@ -229,4 +230,57 @@ impl<M: SupportModel> red_core::RewardModel for RedReward<M> {
     ) -> red_core::Result<Array1<f64>> {
         Ok(self.reward(states, actions)?)
     }
+}
+
+impl<M: SupportModel> red_core::DifferentiableReward for RedReward<M> {
+    fn reward_and_grad(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> red_core::Result<(Array1<f64>, Array2<f64>)> {
+        Ok(self.reward_grad_action(states, actions)?)
+    }
+}
+
+/// Which expert scores calibrate a calibrated `σ1` (see [`fit_red_reward`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExpertScores {
+    /// The fitted model's scores of the pairs it was fitted on (the
+    /// smallest scores: the largest `σ1`).
+    InSample,
+    /// Each pair's score by a model fitted without it
+    /// ([`crate::held_out_scores`] over `folds` folds): what "on the support"
+    /// looks like to the model on pairs it has not seen.
+    HeldOut {
+        /// Folds of the cross-fitting (2 to the number of pairs).
+        folds: usize,
+    },
+}
+
+/// Fits `config` on the expert pairs (`(n, obs_dim)`, `(n, act_dim)`) and
+/// returns RED's reward over it, with `σ1` set by `sigma1` from the expert
+/// scores that `scores` chooses. `rng` first fits the model, then (for
+/// held-out scores) shuffles and fits the folds.
+///
+/// # Errors
+/// The estimator's fitting and scoring errors; [`Error::InvalidConfig`] for
+/// a bad `σ1` or fold count; [`Error::Numerical`] if the calibration
+/// quantile of the scores is 0.
+pub fn fit_red_reward<C: SupportEstimatorConfig, R: rand::Rng + ?Sized>(
+    config: &C,
+    sigma1: Sigma1,
+    scores: ExpertScores,
+    states: ArrayView2<'_, f64>,
+    actions: ArrayView2<'_, f64>,
+    rng: &mut R,
+) -> Result<RedReward<C::Model>> {
+    let model = config.fit(states, actions, rng, &mut no_progress)?;
+    let sigma1 = match (sigma1, scores) {
+        (Sigma1::Fixed(s), _) => s,
+        (rule, ExpertScores::InSample) => rule.resolve(&model.score(states, actions)?.to_vec())?,
+        (rule, ExpertScores::HeldOut { folds }) => {
+            rule.resolve(&held_out_scores(config, states, actions, folds, rng)?.to_vec())?
+        }
+    };
+    RedReward::with_sigma1(model, sigma1)
 }

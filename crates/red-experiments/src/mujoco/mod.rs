@@ -30,84 +30,12 @@
 use std::path::{Path, PathBuf};
 
 use red_mujoco::EnvId;
-use serde::{Deserialize, Serialize};
 
 pub mod check;
 pub mod run;
 pub mod table;
 
-/// How the policy is trained.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Method {
-    /// TRPO on the environment's true reward (an expert for demonstrations).
-    Expert,
-    /// RED: TRPO on `exp(-sigma1 L)` with `L` the RND score (paper Eq. 7).
-    Red,
-    /// The autoencoder baseline: the same reward with an autoencoder's
-    /// reconstruction error as `L`.
-    Ae,
-    /// GAIL's discriminator reward, adapted on every batch.
-    Gail,
-    /// GMMIL's MMD witness reward, adapted on every batch.
-    Gmmil,
-    /// Behaviour cloning alone (no reinforcement learning).
-    Bc,
-}
-
-impl Method {
-    /// The imitation methods of Table 1, in its order.
-    pub const TABLE: [Method; 5] = [
-        Method::Red,
-        Method::Ae,
-        Method::Gail,
-        Method::Gmmil,
-        Method::Bc,
-    ];
-
-    /// The lower-case name used in file names and tables.
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Expert => "expert",
-            Method::Red => "red",
-            Method::Ae => "ae",
-            Method::Gail => "gail",
-            Method::Gmmil => "gmmil",
-            Method::Bc => "bc",
-        }
-    }
-
-    /// The name in tables (`RED`, `GAIL`, ...).
-    pub fn label(self) -> &'static str {
-        match self {
-            Method::Expert => "Expert (TRPO, true reward)",
-            Method::Red => "RED",
-            Method::Ae => "AE",
-            Method::Gail => "GAIL",
-            Method::Gmmil => "GMMIL",
-            Method::Bc => "BC",
-        }
-    }
-
-    /// Whether the method learns from demonstrations.
-    pub fn needs_demo(self) -> bool {
-        self != Method::Expert
-    }
-}
-
-impl std::str::FromStr for Method {
-    type Err = String;
-    /// A method by its [`Method::name`] (`red`, `ae`, `gail`, `gmmil`, `bc`,
-    /// `expert`), case-insensitive.
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        let s = s.trim().to_ascii_lowercase();
-        [Method::Expert]
-            .into_iter()
-            .chain(Method::TABLE)
-            .find(|m| m.name() == s)
-            .ok_or_else(|| format!("unknown method `{s}` (red, ae, gail, gmmil, bc or expert)"))
-    }
-}
+pub use crate::imitation::Method;
 
 /// `hopper`, `halfcheetah`, ...: the task's name in run folders.
 pub fn short_name(env: EnvId) -> String {

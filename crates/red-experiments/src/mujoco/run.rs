@@ -24,7 +24,6 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use ndarray::{Array1, ArrayView2};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use red_core::checkpoint::{load_checkpoint, save_checkpoint, write_atomic};
@@ -32,19 +31,17 @@ use red_core::{Demos, Env, EpisodeEnd, RewardModel, Seeder, Space, Stream, Traje
 use red_mujoco::watched::MJ_N_WARNING;
 use red_mujoco::{EnvId, MujocoEnv, WatchedEnv, describe_warnings};
 use red_rl::bc::{BcConfig, behavior_clone};
-use red_rl::gail::{Gail, GailConfig};
-use red_rl::gmmil::{Gmmil, GmmilConfig};
+use red_rl::gail::GailConfig;
+use red_rl::gmmil::GmmilConfig;
 use red_rl::normalize::{DEFAULT_CLIP, DEFAULT_MIN_STD, ObsNormalizer};
 use red_rl::policy::GaussianPolicy;
 use red_rl::rollout::{EvalReport, evaluate, evaluate_sampled, true_reward};
 use red_rl::trpo::{IterationMetrics, TrpoConfig, TrpoTrainer};
-use red_support::{
-    AutoencoderConfig, FittedEstimator, RedReward, RedRewardConfig, RndConfig, Sigma1,
-    SupportEstimatorConfig, no_progress,
-};
+use red_support::{AutoencoderConfig, ExpertScores, RedRewardConfig, RndConfig, Sigma1};
 use serde::{Deserialize, Serialize};
 
 use super::Method;
+use crate::imitation::{ImitationReward, RewardSettings, fit_reward};
 use crate::{Error, Progress, Result, ResultExt, RunDir};
 
 /// The kind written in this experiment's checkpoints.
@@ -346,52 +343,6 @@ fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
     }
 }
 
-/// The reward a TRPO run learns from, other than the true one.
-#[derive(Clone, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-enum ImitationReward {
-    /// RED or AE: `exp(-sigma1 L)`, fixed after fitting.
-    Support(Box<RedReward<FittedEstimator>>),
-    /// GAIL's discriminator.
-    Gail(Box<Gail>),
-    /// GMMIL's witness function.
-    Gmmil(Box<Gmmil>),
-}
-
-impl RewardModel for ImitationReward {
-    fn rewards(
-        &self,
-        states: ArrayView2<'_, f64>,
-        actions: ArrayView2<'_, f64>,
-    ) -> red_core::Result<Array1<f64>> {
-        match self {
-            ImitationReward::Support(r) => r.rewards(states, actions),
-            ImitationReward::Gail(g) => g.rewards(states, actions),
-            ImitationReward::Gmmil(g) => g.rewards(states, actions),
-        }
-    }
-
-    fn update(
-        &mut self,
-        states: ArrayView2<'_, f64>,
-        actions: ArrayView2<'_, f64>,
-    ) -> red_core::Result<()> {
-        match self {
-            ImitationReward::Support(r) => r.update(states, actions),
-            ImitationReward::Gail(g) => g.update(states, actions),
-            ImitationReward::Gmmil(g) => g.update(states, actions),
-        }
-    }
-
-    fn is_adaptive(&self) -> bool {
-        match self {
-            ImitationReward::Support(r) => r.is_adaptive(),
-            ImitationReward::Gail(g) => g.is_adaptive(),
-            ImitationReward::Gmmil(g) => g.is_adaptive(),
-        }
-    }
-}
-
 /// The best mean true return of the last `best_window` training episodes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -663,50 +614,34 @@ fn fresh_state(
         _ => None,
     };
     let mut trainer = TrpoTrainer::new(cfg.trpo.clone(), obs_dim, act_dim, normalizer, cfg.seed)?;
-    let reward = match (cfg.method, &pairs) {
-        (Method::Expert | Method::Bc, _) => None,
-        (_, None) => {
+    let reward = match &pairs {
+        None if cfg.method.needs_demo() && cfg.method != Method::Bc => {
             return Err(Error::InvalidConfig {
                 field: "demo".into(),
                 reason: format!("method `{}` needs demonstrations", cfg.method.name()),
             });
         }
-        (Method::Red | Method::Ae, Some((es, ea))) => {
-            let mut rng = seeder.rng(Stream::Estimator);
-            let model = if cfg.method == Method::Red {
-                FittedEstimator::Rnd(cfg.rnd.fit(
-                    es.view(),
-                    ea.view(),
-                    &mut rng,
-                    &mut no_progress,
-                )?)
-            } else {
-                FittedEstimator::Autoencoder(cfg.autoencoder.fit(
-                    es.view(),
-                    ea.view(),
-                    &mut rng,
-                    &mut no_progress,
-                )?)
+        None => None,
+        Some((es, ea)) => {
+            let settings = RewardSettings {
+                rnd: &cfg.rnd,
+                autoencoder: &cfg.autoencoder,
+                sigma1: cfg.sigma1,
+                scores: ExpertScores::InSample,
+                gail: &cfg.gail,
+                gmmil: &cfg.gmmil,
             };
-            let config = RedRewardConfig { sigma1: cfg.sigma1 };
-            Some(ImitationReward::Support(Box::new(RedReward::new(
-                model,
-                &config,
+            let mut rng = seeder.rng(Stream::Estimator);
+            let gail_seed = seeder.derive(Stream::Estimator);
+            fit_reward(
+                cfg.method,
+                &settings,
                 es.view(),
                 ea.view(),
-            )?)))
+                &mut rng,
+                gail_seed,
+            )?
         }
-        (Method::Gail, Some((es, ea))) => Some(ImitationReward::Gail(Box::new(Gail::new(
-            cfg.gail.clone(),
-            es.view(),
-            ea.view(),
-            seeder.derive(Stream::Estimator),
-        )?))),
-        (Method::Gmmil, Some((es, ea))) => Some(ImitationReward::Gmmil(Box::new(Gmmil::new(
-            cfg.gmmil.clone(),
-            es.view(),
-            ea.view(),
-        )?))),
     };
     if cfg.bc_warm_start_epochs > 0
         && let Some((es, ea)) = &pairs

@@ -10,12 +10,16 @@
 //! (truncated): the task has no terminal state. "Mean episodic reward" in
 //! the experiments is the mean true reward PER STEP over an episode, so the
 //! expert scores `E|s| = 0.5` and a random policy 0 whatever the length.
+//!
+//! It lives in red-core, below the learners, so that red-rl's DQN tests and
+//! red-experiments' toy experiment use the same task without a dependency
+//! between them.
 
 use ndarray::{Array1, Array2, ArrayView2};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use red_core::{
+use crate::{
     BoxSpace, Demos, Env, EpisodeEnd, Error, Info, Result, RewardModel, Space, Step, TimeLimit,
     Trajectory,
 };
