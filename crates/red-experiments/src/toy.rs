@@ -19,14 +19,14 @@ use ndarray::{Array1, Array2};
 use rand::RngExt;
 use serde::{Deserialize, Serialize};
 
-use red_core::{Env, RewardModel, Seeder, Stream};
-use red_rl::dqn::{Dqn, DqnConfig};
-use red_rl::gail::GailConfig;
-use red_rl::gmmil::GmmilConfig;
 use red_core::simple_domain::{
     ActionValues, action_value, expert_demos, expert_demos_stratified, simple_domain,
     to_action_values,
 };
+use red_core::{Env, RewardModel, Seeder, Stream};
+use red_rl::dqn::{Dqn, DqnConfig};
+use red_rl::gail::GailConfig;
+use red_rl::gmmil::GmmilConfig;
 use red_support::{
     AutoencoderConfig, ExpertScores, RedReward, RedRewardConfig, RndConfig, SupportModel,
 };

@@ -423,8 +423,8 @@ fn argmax(xs: &[f32]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use red_core::simple_domain::{action_value, simple_domain};
     use ndarray::Array1;
+    use red_core::simple_domain::{action_value, simple_domain};
 
     /// The true reward of the simple domain, as a reward model: DQN must
     /// learn the expert from it.
