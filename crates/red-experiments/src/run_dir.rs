@@ -47,7 +47,20 @@ impl Existing {
 pub struct RunDir {
     path: PathBuf,
     notes: Vec<String>,
-    _lock: RunLock,
+    lock: Option<RunLock>,
+    /// Whether this value made the folder (then an empty folder is removed
+    /// when it is dropped: a run refused before writing leaves nothing).
+    created: bool,
+}
+
+impl Drop for RunDir {
+    fn drop(&mut self) {
+        drop(self.lock.take());
+        if self.created {
+            // Fails, harmlessly, unless the folder is empty.
+            let _ = std::fs::remove_dir(&self.path);
+        }
+    }
 }
 
 impl RunDir {
@@ -81,6 +94,7 @@ impl RunDir {
     /// As [`RunDir::create_with`].
     pub fn new_at(path: &Path, existing: Existing) -> Result<Self> {
         let mut notes = Vec::new();
+        let mut created = !path.exists();
         if path.exists() {
             if !path.is_dir() {
                 return Err(Error::Input {
@@ -113,6 +127,7 @@ impl RunDir {
                             path.display(),
                             aside.display()
                         ));
+                        created = true;
                     }
                 }
             }
@@ -126,7 +141,8 @@ impl RunDir {
         Ok(Self {
             path: path.to_path_buf(),
             notes,
-            _lock: lock,
+            lock: Some(lock),
+            created,
         })
     }
 
@@ -146,7 +162,8 @@ impl RunDir {
         Ok(Self {
             path: path.to_path_buf(),
             notes: note.into_iter().collect(),
-            _lock: lock,
+            lock: Some(lock),
+            created: false,
         })
     }
 
