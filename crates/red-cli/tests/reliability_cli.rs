@@ -8,8 +8,12 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+/// The binary under test; `RED_CLI_BIN` runs the same cases against
+/// another build (for example main's, to see which fail there).
 fn red() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_red-cli"))
+    Command::new(
+        std::env::var_os("RED_CLI_BIN").unwrap_or_else(|| env!("CARGO_BIN_EXE_red-cli").into()),
+    )
 }
 
 fn stderr(o: &Output) -> String {

@@ -155,7 +155,9 @@ impl RunDir {
         if !path.is_dir() {
             return Err(Error::Input {
                 path: path.to_path_buf(),
-                reason: "not a run folder (no such directory)".into(),
+                reason: format!(
+                    "not a run folder (no such directory, so no {CHECKPOINT} to resume from)"
+                ),
             });
         }
         let (lock, note) = RunLock::acquire(path)?;
