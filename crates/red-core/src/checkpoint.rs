@@ -195,10 +195,14 @@ pub fn load_checkpoint_for<C: Serialize, T: DeserializeOwned>(
     kind: &str,
     config: &C,
 ) -> Result<T> {
-    let expected = serde_json::to_value(config).map_err(|e| Error::InvalidConfig {
-        field: "checkpoint".into(),
-        reason: format!("cannot serialise the settings to compare: {e}"),
-    })?;
+    // Through text, as the saved settings were: `to_value` would widen an
+    // f32 0.9 to 0.8999999761581421, its text reads back as 0.9.
+    let expected: serde_json::Value = serde_json::to_string(config)
+        .and_then(|t| serde_json::from_str(&t))
+        .map_err(|e| Error::InvalidConfig {
+            field: "checkpoint".into(),
+            reason: format!("cannot serialise the settings to compare: {e}"),
+        })?;
     load_checkpoint_impl(path, kind, Some(&expected))
 }
 
@@ -382,7 +386,15 @@ mod tests {
     fn edits_and_other_settings_are_refused() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("c.json");
-        let config = serde_json::json!({"hidden": [100, 100], "lr": 0.001});
+        #[derive(Serialize)]
+        struct Settings {
+            hidden: Vec<usize>,
+            lr: f32,
+        }
+        let config = Settings {
+            hidden: vec![100, 100],
+            lr: 0.9,
+        };
         save_checkpoint_for(&p, "toy", &config, &vec![1.25f64, 2.5]).unwrap();
         let back: Vec<f64> = load_checkpoint_for(&p, "toy", &config).unwrap();
         assert_eq!(back, vec![1.25, 2.5]);
@@ -393,7 +405,10 @@ mod tests {
         assert!(e.to_string().contains("checksum"), "{e}");
         // Other settings: the differences are named.
         std::fs::write(&p, &text).unwrap();
-        let other = serde_json::json!({"hidden": [64, 100], "lr": 0.001});
+        let other = Settings {
+            hidden: vec![64, 100],
+            lr: 0.9,
+        };
         let e = load_checkpoint_for::<_, Vec<f64>>(&p, "toy", &other).unwrap_err();
         assert!(
             e.to_string()

@@ -560,7 +560,8 @@ pub fn resume(
     progress: &mut dyn Progress,
 ) -> Result<ToyOutcome> {
     check_threads(threads)?;
-    let run_dir = RunDir::open(dir)?;
+    let run_dir =
+        RunDir::open(dir).with_context(|| format!("cannot resume from {}", dir.display()))?;
     let path = dir.join(CHECKPOINT);
     let cp: ToyCheckpoint = red_core::checkpoint::load_checkpoint(&path, CHECKPOINT_KIND)
         .with_context(|| format!("cannot resume from {}", dir.display()))?;
