@@ -134,7 +134,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         ),
         None => {
             let (config, demos) = run_config(&args)?;
-            let force = red_experiments::run_dir::Existing::from_force(args.force);
+            let force = args.force.into();
             let dir = red_experiments::RunDir::create_with(&args.out_dir, &args.name, force)?;
             let out = dir.path().to_path_buf();
             (

@@ -116,7 +116,7 @@ pub fn run(args: ToyArgs) -> anyhow::Result<()> {
         None => {
             let config = args.config();
             config.validate().map_err(crate::flag_error)?;
-            let force = red_experiments::run_dir::Existing::from_force(args.force);
+            let force = args.force.into();
             let dir = red_experiments::RunDir::create_with(&args.runs_dir, &args.name, force)?;
             let out = dir.path().to_path_buf();
             let outcome = toy::run_new(config, dir, threads, interrupt::flag(), &mut bar);

@@ -42,6 +42,13 @@ impl Existing {
     }
 }
 
+impl From<bool> for Existing {
+    /// The command line's `--force`: see [`Existing::from_force`].
+    fn from(force: bool) -> Self {
+        Self::from_force(force)
+    }
+}
+
 /// A run's folder, locked for as long as this value lives.
 #[derive(Debug)]
 pub struct RunDir {
@@ -517,6 +524,7 @@ mod tests {
             .to_string();
         assert!(e.contains("in use"), "{e}");
         let path = run.path().to_path_buf();
+        run.write("config.json", b"{}").unwrap();
         drop(run);
         // A pid above Linux's maximum (2^22) is never running.
         std::fs::write(path.join(LOCK_FILE), "4194305\n").unwrap();
