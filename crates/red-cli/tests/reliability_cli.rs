@@ -336,6 +336,9 @@ fn reseal(path: &Path, f: impl FnOnce(&mut serde_json::Value)) {
     std::fs::write(path, serde_json::to_string(&v).unwrap()).unwrap();
 }
 
+/// An edit of a checkpoint's state.
+type Edit = dyn Fn(&mut serde_json::Value);
+
 #[test]
 fn edited_or_senseless_checkpoints_are_refused_with_what_differs() {
     let dir = tempfile::tempdir().unwrap();
@@ -360,7 +363,7 @@ fn edited_or_senseless_checkpoints_are_refused_with_what_differs() {
         &["checksum", "checkpoint.json"],
     );
 
-    let cases: [(&str, &dyn Fn(&mut serde_json::Value)); 3] = [
+    let cases: [(&str, &Edit); 3] = [
         ("variance[0] is -1", &|s| {
             s["warm_start"]["normalizer"]["var"][0] = (-1.0).into();
         }),
