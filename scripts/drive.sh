@@ -10,7 +10,8 @@
 # learning_curve.png and eval_paths.png. Extra arguments go to red-cli, e.g.
 # `--methods all` for the five methods of the paper's driving table, or
 # `--seed 1`. Ctrl-C saves a checkpoint; `red-cli drive --resume
-# runs/drive-main` continues it.
+# runs/drive-main` continues it. A second run refuses the folder of the
+# first: pass `--force` to move the old one aside (runs/drive-main.old-N).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

@@ -65,6 +65,10 @@ pub struct TrainArgs {
     /// setting comes from the checkpoint.
     #[arg(long)]
     pub resume: Option<PathBuf>,
+    /// Start over in a folder that holds a run: the old folder is moved
+    /// aside to `<name>.old-N` first.
+    #[arg(long, conflicts_with = "resume")]
+    pub force: bool,
     /// Environment steps between checkpoints (default: the training
     /// config's `checkpoint_every`).
     #[arg(long)]
@@ -122,11 +126,12 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
             dir.clone(),
         ),
         None => {
-            red_experiments::run_dir::check_name(&args.name)?;
             let (config, demos) = run_config(&args)?;
-            let out = args.out_dir.join(&args.name);
+            let force = args.force.into();
+            let dir = red_experiments::RunDir::create_with(&args.out_dir, &args.name, force)?;
+            let out = dir.path().to_path_buf();
             (
-                drive::run_new(config, &demos, &out, interrupt::flag(), &mut bar)?,
+                drive::run_new(config, &demos, dir, interrupt::flag(), &mut bar)?,
                 out,
             )
         }

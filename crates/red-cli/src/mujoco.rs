@@ -18,6 +18,7 @@ use red_experiments::mujoco::check::{EnvCheck, check_env};
 use red_experiments::mujoco::run::{self, Outcome, PolicyEval, RunConfig};
 use red_experiments::mujoco::table::{self, GridProgress, TableConfig};
 use red_experiments::mujoco::{Method, default_demo, default_run_name, short_name};
+use red_experiments::run_dir;
 use red_mujoco::EnvId;
 
 use crate::interrupt;
@@ -73,6 +74,10 @@ struct CommonRunArgs {
     /// below the steps done, the run ends there and is evaluated).
     #[arg(long, value_name = "RUN_DIR")]
     pub resume: Option<PathBuf>,
+    /// Start over in a folder that holds a run: the old folder is moved
+    /// aside to `<name>.old-N` first.
+    #[arg(long, conflicts_with = "resume")]
+    pub force: bool,
     /// A JSON file of settings (the fields of `config.json`; missing fields
     /// take the task's defaults, unknown fields are refused).
     #[arg(long, value_name = "FILE")]
@@ -285,7 +290,7 @@ fn start_run(
                 .name
                 .clone()
                 .unwrap_or_else(|| default_run_name(env, method, cfg.seed));
-            (common.out_dir.join(name), cfg, false)
+            (run_dir::path_in(&common.out_dir, &name)?, cfg, false)
         }
     };
     let mut bar = Bar::labelled(
@@ -295,7 +300,8 @@ fn start_run(
     bar.stop_at = common
         .stop_after_iterations
         .map(|k| k * cfg.trpo.steps_per_batch as u64);
-    let outcome = run::run(&dir, Some(cfg), resume, interrupt::flag(), &mut bar)?;
+    let start = run::Start::from_flags(resume, common.force);
+    let outcome = run::run_with(&dir, Some(cfg), start, interrupt::flag(), &mut bar)?;
     drop(bar);
     if outcome == Outcome::Interrupted {
         println!("interrupted; continue with --resume {}", dir.display());

@@ -74,6 +74,10 @@ pub struct ToyArgs {
     /// the others are run. Other settings given with it are ignored.
     #[arg(long)]
     pub resume: Option<PathBuf>,
+    /// Start over in a folder that holds a run: the old folder is moved
+    /// aside to `<name>.old-N` first.
+    #[arg(long, conflicts_with = "resume")]
+    pub force: bool,
 }
 
 impl ToyArgs {
@@ -110,14 +114,13 @@ pub fn run(args: ToyArgs) -> anyhow::Result<()> {
             dir.clone(),
         ),
         None => {
-            red_experiments::run_dir::check_name(&args.name)?;
             let config = args.config();
             config.validate().map_err(crate::flag_error)?;
-            let out = args.runs_dir.join(&args.name);
-            (
-                toy::run_new(config, &out, threads, interrupt::flag(), &mut bar)?,
-                out,
-            )
+            let force = args.force.into();
+            let dir = red_experiments::RunDir::create_with(&args.runs_dir, &args.name, force)?;
+            let out = dir.path().to_path_buf();
+            let outcome = toy::run_new(config, dir, threads, interrupt::flag(), &mut bar);
+            (outcome.map_err(crate::flag_error)?, out)
         }
     };
     match outcome {

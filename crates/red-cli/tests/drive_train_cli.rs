@@ -321,9 +321,16 @@ fn a_demo_on_another_road_trains_on_its_road_and_other_roads_are_refused() {
 #[test]
 fn the_table_and_numbers_are_written_when_a_picture_cannot_be() {
     let dir = tempfile::tempdir().unwrap();
-    // A folder where the picture should go: the picture cannot be written.
+    // A new run refuses a folder that holds files, so the run is stopped
+    // part-way, a folder is put where the picture should go (the picture
+    // cannot be written), and the run is resumed.
+    let o = train(dir.path(), "p", "red,bc", &["--interrupt-after", "200"]);
+    assert_eq!(o.status.code(), Some(130));
     std::fs::create_dir_all(dir.path().join("p/eval_paths.png/blocked")).unwrap();
-    let o = train(dir.path(), "p", "red,bc", &[]);
+    let o = cli(
+        &["--resume", dir.path().join("p").to_str().unwrap()],
+        dir.path(),
+    );
     ok(&o);
     let table = String::from_utf8_lossy(&o.stdout);
     assert!(table.contains("warning: eval_paths.png"), "{table}");

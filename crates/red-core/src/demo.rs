@@ -57,6 +57,16 @@ pub const FORMAT_VERSION: u32 = 2;
 /// The oldest version this build reads.
 pub const OLDEST_READABLE_VERSION: u32 = 1;
 
+/// The largest magnitude an observation, action or reward of a
+/// demonstration may have: 1e9. The networks that learn from the pairs work
+/// in `f32`, whose largest number is 3.4e38: a value of 1e308 (finite in
+/// the file) becomes infinite there, and even 1e20 overflows when squared by
+/// a loss. Below 1e9 the square (1e18) and sums of squares over any data
+/// set stay far inside `f32`. No observation or action of the supported
+/// tasks comes within several orders of magnitude of it (MuJoCo's are below
+/// 1e3, the driving scenario's below 1e2); rescale larger data first.
+pub const MAX_ABS_VALUE: f64 = 1e9;
+
 /// Who or what made a set of demonstrations. Tables call a person's
 /// demonstration a "demonstration", not an "expert".
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -294,7 +304,8 @@ impl Demos {
     /// version, a non-empty `env_id`, positive dimensions, a positive finite
     /// `control_hz`), at least one trajectory, and in each trajectory at
     /// least one step, as many observations (and rewards, if any) as
-    /// actions, rows of `obs_dim` and `act_dim` numbers, all finite.
+    /// actions, rows of `obs_dim` and `act_dim` numbers, all finite and at
+    /// most [`MAX_ABS_VALUE`] in magnitude.
     ///
     /// # Errors
     /// [`Error::Demo`] for the first problem, with its trajectory and step
@@ -365,14 +376,17 @@ impl Demos {
                     .map_err(|r| err(Some(i), Some(k), r))?;
                 check_row("action", &t.actions[k], self.act_dim, "act_dim")
                     .map_err(|r| err(Some(i), Some(k), r))?;
-                if let Some(r) = &t.rewards
-                    && !r[k].is_finite()
-                {
-                    return Err(err(
-                        Some(i),
-                        Some(k),
-                        format!("reward is {}, not a finite number", r[k]),
-                    ));
+                if let Some(r) = &t.rewards {
+                    if !r[k].is_finite() {
+                        return Err(err(
+                            Some(i),
+                            Some(k),
+                            format!("reward is {}, not a finite number", r[k]),
+                        ));
+                    }
+                    if r[k].abs() > MAX_ABS_VALUE {
+                        return Err(err(Some(i), Some(k), too_large("reward", r[k])));
+                    }
                 }
             }
         }
@@ -386,8 +400,12 @@ impl Demos {
     /// column: a truncated file, `NaN`, `Infinity`, a number too large for
     /// `f64`), a wrong format name or unknown version, a missing or
     /// ill-typed field, or anything [`Demos::validate`] rejects; the
-    /// trajectory and step are given when the problem has them.
+    /// trajectory and step are given when the problem has them. A UTF-8
+    /// byte-order mark at the start is skipped.
     pub fn from_json_str(text: &str) -> Result<Self> {
+        // A UTF-8 byte-order mark (some Windows editors write one) is
+        // skipped: it is not part of the JSON.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         if text.trim().is_empty() {
             return Err(demo_err(
                 None,
@@ -493,7 +511,21 @@ fn check_row(
     if let Some((j, v)) = row.iter().enumerate().find(|(_, v)| !v.is_finite()) {
         return Err(format!("{what}[{j}] is {v}, not a finite number"));
     }
+    if let Some((j, v)) = row
+        .iter()
+        .enumerate()
+        .find(|(_, v)| v.abs() > MAX_ABS_VALUE)
+    {
+        return Err(too_large(&format!("{what}[{j}] (column {j})"), *v));
+    }
     Ok(())
+}
+
+fn too_large(what: &str, v: f64) -> String {
+    format!(
+        "{what} is {v:e}, beyond the magnitude bound {MAX_ABS_VALUE:e} (the networks work in \
+         f32, where its square would overflow); rescale the data"
+    )
 }
 
 /// The header fields alone; every other field is skipped.

@@ -268,7 +268,7 @@ fn awkward() -> Demos {
     d.trajectories.push(Trajectory {
         observations: vec![
             vec![0.1, 1.0 / 3.0, 1e-300],
-            vec![-0.0, 2.5e300, 123_456_789.123_456_78],
+            vec![-0.0, -9.999_999_99e8, 123_456_789.123_456_78],
         ],
         actions: vec![
             vec![f64::MIN_POSITIVE, -1.0],

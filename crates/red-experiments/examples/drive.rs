@@ -19,7 +19,7 @@ fn main() -> Result<(), red_experiments::Error> {
         config.train.steps = steps;
     }
     let stop = AtomicBool::new(false);
-    let out = std::path::Path::new("runs/example-drive");
+    let out = red_experiments::RunDir::create("runs".as_ref(), "example-drive")?;
     match drive::run_new(config, &demos, out, &stop, &mut red_experiments::Silent)? {
         DriveOutcome::Finished(report) => print!("{}", report.table()),
         DriveOutcome::Stopped { checkpoint, .. } => eprintln!("stopped: {}", checkpoint.display()),

@@ -24,7 +24,7 @@ use ndarray::{Array2, ArrayView2};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use red_core::DifferentiableReward;
-use red_core::checkpoint::{load_checkpoint, save_checkpoint};
+use red_core::checkpoint::load_checkpoint;
 use red_core::{DemoSource, Demos, Env, RewardModel as _};
 use red_drive::env::{INFO_COLLISION, INFO_SUCCESS};
 use red_drive::render::demo_path;
@@ -132,8 +132,8 @@ pub struct DriveTrainConfig {
     /// Episodes per selection check (reset seeds 2000, 2001, ...: never the
     /// evaluation's).
     pub select_episodes: usize,
-    /// Environment steps between checkpoints (0: only on a stop and
-    /// between methods).
+    /// Environment steps between checkpoints (at least 1; a run also saves
+    /// on a stop and between methods).
     pub checkpoint_every: u64,
     /// Roads of the training episodes: 0 trains on the demonstration's
     /// road only (the paper's setting); `N > 0` drives each training
@@ -252,6 +252,18 @@ impl DriveTrainConfig {
             return Err(invalid(
                 "train.sigma1.folds",
                 format!("must be at least 2, got {}", r.folds),
+            ));
+        }
+        if self.steps == 0 {
+            return Err(invalid(
+                "steps",
+                "must be at least 1 (environment steps of SVG(1)-ER per method)".into(),
+            ));
+        }
+        if self.checkpoint_every == 0 {
+            return Err(invalid(
+                "checkpoint_every",
+                "must be at least 1 (environment steps between checkpoints)".into(),
             ));
         }
         if self.reward_update_pairs == 0 {
@@ -631,6 +643,46 @@ struct Checkpoint {
     done: Vec<MethodResult>,
     current: Option<MethodState>,
     elapsed_s: f64,
+}
+
+impl Checkpoint {
+    /// Values that make no sense even in a whole file: policies whose
+    /// hidden sizes disagree with the settings, a learner made with other
+    /// settings, a bad normaliser, steps beyond the budget, methods out of
+    /// order.
+    fn check(&self) -> std::result::Result<(), String> {
+        use crate::checks::{check_policy, check_steps};
+        let train = &self.config.train;
+        self.config.validate().map_err(|e| e.to_string())?;
+        check_policy("the warm start", &self.warm_start, &train.policy.hidden)?;
+        if self.done.len() > self.config.methods.len() {
+            return Err(format!(
+                "{} methods are done but the run has {}",
+                self.done.len(),
+                self.config.methods.len()
+            ));
+        }
+        for (m, want) in self.done.iter().zip(&self.config.methods) {
+            if &m.method != want {
+                return Err(format!("holds `{}` where the run has `{want}`", m.method));
+            }
+        }
+        if let Some(st) = &self.current {
+            let what = format!("method {}", st.method);
+            if self.config.methods.get(self.done.len()) != Some(&st.method) {
+                return Err(format!("{what} is not the run's next method"));
+            }
+            if st.svg.config() != &train.svg {
+                return Err(format!(
+                    "{what}: the SVG(1)-ER learner was made with other settings than the run's \
+                     train.svg"
+                ));
+            }
+            check_policy(&what, st.svg.policy(), &train.policy.hidden)?;
+            check_steps(&what, st.svg.env_steps(), train.steps)?;
+        }
+        Ok(())
+    }
 }
 
 /// Outcome of one deterministic episode.
@@ -1061,7 +1113,8 @@ pub enum DriveOutcome {
 /// Trains the warm start shared by every method and runs every method.
 ///
 /// `demos` must be the file `config.demo` read by [`load_demo`] (its road
-/// is `config.drive`). Outputs go to the folder `out`, created if needed.
+/// is `config.drive`). Outputs go to the new run folder `dir` (see
+/// [`RunDir::create_with`]), locked for the run's life.
 ///
 /// # Errors
 /// Invalid settings; a failure of fitting, training or evaluation (with
@@ -1069,16 +1122,14 @@ pub enum DriveOutcome {
 pub fn run_new(
     config: DriveRunConfig,
     demos: &Demos,
-    out: &Path,
+    run_dir: RunDir,
     stop: &AtomicBool,
     progress: &mut dyn Progress,
 ) -> Result<DriveOutcome> {
     config.validate()?;
-    let run_dir = RunDir::create(
-        out.parent().unwrap_or(Path::new(".")),
-        &out.file_name()
-            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
-    )?;
+    for n in run_dir.notes() {
+        progress.note(n);
+    }
     let (es, ea) = demos.pairs();
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
     let mut norm = ObsNormalizer::from_data(es.view(), 5.0, 1e-2)?;
@@ -1111,10 +1162,17 @@ pub fn run_new(
 /// As [`run_new`]; a missing or damaged checkpoint, or a demonstration
 /// file that changed since the checkpoint, is refused.
 pub fn resume(dir: &Path, stop: &AtomicBool, progress: &mut dyn Progress) -> Result<DriveOutcome> {
-    let path = dir.join("checkpoint.json");
+    let run_dir = RunDir::open(dir)?;
+    for n in run_dir.notes() {
+        progress.note(n);
+    }
+    let path = run_dir.file(crate::run_dir::CHECKPOINT);
     let ck: Checkpoint = load_checkpoint(&path, CHECKPOINT_KIND)
         .with_context(|| format!("resuming from {}", path.display()))?;
-    let run_dir = RunDir::open(dir)?;
+    ck.check().map_err(|reason| Error::Input {
+        path: path.clone(),
+        reason: format!("{reason}; the checkpoint cannot be resumed"),
+    })?;
     progress.note(&format!(
         "resuming {} ({} of {} methods done; settings from the checkpoint)",
         dir.display(),
@@ -1177,7 +1235,7 @@ fn drive_run(
                     let mut c = ck.clone();
                     c.current = Some(st.clone());
                     c.elapsed_s = base_elapsed + started.elapsed().as_secs_f64();
-                    save_checkpoint(&ck_path, CHECKPOINT_KIND, &c)?;
+                    run_dir.save_checkpoint(CHECKPOINT_KIND, &c.config, &c)?;
                     Ok(())
                 };
                 train_method(&run, &mut st, &mut save, stop, progress)?
@@ -1193,7 +1251,7 @@ fn drive_run(
         };
         ck.done.push(result);
         ck.elapsed_s = base_elapsed + started.elapsed().as_secs_f64();
-        save_checkpoint(&ck_path, CHECKPOINT_KIND, &ck)?;
+        run_dir.save_checkpoint(CHECKPOINT_KIND, &ck.config, &ck)?;
         if stop.load(Ordering::SeqCst) && ck.done.len() < run.methods.len() {
             return Ok(DriveOutcome::Stopped {
                 checkpoint: ck_path,

@@ -30,6 +30,17 @@ pub enum Error {
         /// The operating system's error.
         source: std::io::Error,
     },
+    /// A file of the run cannot be written: which, why, what survives and
+    /// how to finish the run.
+    #[error("cannot write {}: {reason}; {survives}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        reason: String,
+        /// What is left whole and how to finish.
+        survives: String,
+    },
     /// A picture cannot be drawn.
     #[error("drawing {}: {reason}", path.display())]
     Plot {

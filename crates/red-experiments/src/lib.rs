@@ -14,14 +14,17 @@
 //! let mut config = DriveRunConfig::new("data/drive-scripted-expert.json", road);
 //! config.train.steps = 3_000;
 //! let stop = AtomicBool::new(false);
-//! let out = std::env::temp_dir().join("red-drive-example");
-//! match drive::run_new(config, &demos, &out, &stop, &mut red_experiments::Silent)? {
+//! // A new folder (a folder holding a run is refused; Existing::MoveAside
+//! // moves it aside), locked while the run lasts.
+//! let out = red_experiments::RunDir::create(&std::env::temp_dir(), "red-drive-example")?;
+//! match drive::run_new(config, &demos, out, &stop, &mut red_experiments::Silent)? {
 //!     DriveOutcome::Finished(report) => print!("{}", report.table()),
 //!     DriveOutcome::Stopped { .. } => unreachable!("nobody set the stop flag"),
 //! }
 //! # Ok::<(), red_experiments::Error>(())
 //! ```
 
+pub mod checks;
 pub mod doctor;
 pub mod drive;
 pub mod error;

@@ -1,50 +1,185 @@
 //! The run folder: where an experiment writes `config.json`, `metrics.csv`,
-//! `eval.json`, its pictures and its checkpoint. Every file is written
-//! atomically (a temporary file beside it, then a rename), so a run killed at
-//! any moment leaves each file whole: the old one or the new one.
+//! `eval.json`, its pictures and its checkpoint.
+//!
+//! - A run's name is a plain folder name, so the run stays inside the
+//!   folder of runs ([`check_name`]).
+//! - A new run refuses a folder that already holds files (they belong to
+//!   another run): the user continues that run (`--resume`) or starts over
+//!   with [`Existing::MoveAside`] (`--force`), which renames the old folder
+//!   to `<name>.old-<k>` first, so files of two runs never mix.
+//! - A lock file (`run.lock`, holding the process id) is held for the life
+//!   of the [`RunDir`]: a second run on the same folder is refused with the
+//!   holder's pid; the lock of a process that is no longer running is taken
+//!   over, with a note ([`RunDir::notes`]).
+//! - Every file is written atomically (a temporary file beside it, then a
+//!   rename), so a run killed at any moment leaves each file whole: the old
+//!   one or the new one. A write that fails names the file and says what
+//!   survives and how to finish ([`Error::Write`]).
 
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use crate::{Error, Result};
 
-/// A run's folder.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// The lock file of a run folder.
+pub const LOCK_FILE: &str = "run.lock";
+
+/// What a new run does with a folder that already holds files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Existing {
+    /// Refuse it, naming `--resume` and `--force` (the default).
+    #[default]
+    Refuse,
+    /// Rename it to `<name>.old-<k>` (the first free `k`) and start an
+    /// empty folder.
+    MoveAside,
+}
+
+impl Existing {
+    /// [`Existing::MoveAside`] when `force`, else [`Existing::Refuse`].
+    pub fn from_force(force: bool) -> Self {
+        if force { Self::MoveAside } else { Self::Refuse }
+    }
+}
+
+impl From<bool> for Existing {
+    /// The command line's `--force`: see [`Existing::from_force`].
+    fn from(force: bool) -> Self {
+        Self::from_force(force)
+    }
+}
+
+/// A run's folder, locked for as long as this value lives.
+#[derive(Debug)]
 pub struct RunDir {
     path: PathBuf,
+    notes: Vec<String>,
+    lock: Option<RunLock>,
+    /// Whether this value made the folder (then an empty folder is removed
+    /// when it is dropped: a run refused before writing leaves nothing).
+    created: bool,
+}
+
+impl Drop for RunDir {
+    fn drop(&mut self) {
+        drop(self.lock.take());
+        if self.created {
+            // Fails, harmlessly, unless the folder is empty.
+            let _ = std::fs::remove_dir(&self.path);
+        }
+    }
 }
 
 impl RunDir {
-    /// The folder `name` inside `out_dir`, created if missing. `name` must
-    /// be a plain name: not empty, no path separator, not `.` or `..`, so
-    /// the run always stays inside `out_dir`.
+    /// A new run's folder `name` inside `out_dir`; a folder that already
+    /// holds files is refused (see [`RunDir::create_with`]).
     ///
     /// # Errors
-    /// [`Error::InvalidConfig`] for a name that is not plain, [`Error::Io`]
-    /// if the folder cannot be created.
+    /// As [`RunDir::create_with`].
     pub fn create(out_dir: &Path, name: &str) -> Result<Self> {
-        check_name(name)?;
-        let path = out_dir.join(name);
-        std::fs::create_dir_all(&path).map_err(|source| Error::Io {
-            path: path.clone(),
-            source,
-        })?;
-        Ok(Self { path })
+        Self::create_with(out_dir, name, Existing::Refuse)
     }
 
-    /// An existing run folder (to resume it).
+    /// A new run's folder `name` inside `out_dir`, created if missing and
+    /// locked. `name` must be a plain name ([`check_name`]). A folder that
+    /// already holds files is refused or moved aside, as `existing` says;
+    /// one locked by a running process is always refused.
     ///
     /// # Errors
-    /// [`Error::Input`] if `path` is not a folder.
+    /// [`Error::InvalidConfig`] for a name that is not plain,
+    /// [`Error::Input`] for a folder that holds a run or is in use,
+    /// [`Error::Io`] if the folder cannot be created or moved.
+    pub fn create_with(out_dir: &Path, name: &str, existing: Existing) -> Result<Self> {
+        check_name(name)?;
+        Self::new_at(&out_dir.join(name), existing)
+    }
+
+    /// A new run's folder at `path` (a cell of a grid, a folder the caller
+    /// named), as [`RunDir::create_with`] without the name check.
+    ///
+    /// # Errors
+    /// As [`RunDir::create_with`].
+    pub fn new_at(path: &Path, existing: Existing) -> Result<Self> {
+        let mut notes = Vec::new();
+        let mut created = !path.exists();
+        if path.exists() {
+            if !path.is_dir() {
+                return Err(Error::Input {
+                    path: path.to_path_buf(),
+                    reason: "exists and is not a folder; choose another --name".into(),
+                });
+            }
+            refuse_if_locked(path)?;
+            if holds_files(path)? {
+                match existing {
+                    Existing::Refuse => {
+                        return Err(Error::Input {
+                            path: path.to_path_buf(),
+                            reason: format!(
+                                "already holds a run; continue it with --resume {0}, or start \
+                                 over with --force (the old folder is moved aside to {0}.old-N, \
+                                 never mixed with the new run), or choose another --name",
+                                path.display()
+                            ),
+                        });
+                    }
+                    Existing::MoveAside => {
+                        let aside = aside_path(path);
+                        std::fs::rename(path, &aside).map_err(|source| Error::Io {
+                            path: path.to_path_buf(),
+                            source,
+                        })?;
+                        notes.push(format!(
+                            "--force: the old {} was moved aside to {}",
+                            path.display(),
+                            aside.display()
+                        ));
+                        created = true;
+                    }
+                }
+            }
+        }
+        std::fs::create_dir_all(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let (lock, note) = RunLock::acquire(path)?;
+        notes.extend(note);
+        Ok(Self {
+            path: path.to_path_buf(),
+            notes,
+            lock: Some(lock),
+            created,
+        })
+    }
+
+    /// An existing run folder, to resume it; locked.
+    ///
+    /// # Errors
+    /// [`Error::Input`] if `path` is not a folder or another running
+    /// process holds its lock.
     pub fn open(path: &Path) -> Result<Self> {
         if !path.is_dir() {
             return Err(Error::Input {
                 path: path.to_path_buf(),
-                reason: "not a run folder (no such directory)".into(),
+                reason: format!(
+                    "not a run folder (no such directory, so no {CHECKPOINT} to resume from)"
+                ),
             });
         }
+        let (lock, note) = RunLock::acquire(path)?;
         Ok(Self {
             path: path.to_path_buf(),
+            notes: note.into_iter().collect(),
+            lock: Some(lock),
+            created: false,
         })
+    }
+
+    /// What happened while the folder was prepared (an old folder moved
+    /// aside, a stale lock taken over), for the user to read.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
     }
 
     /// The folder.
@@ -60,10 +195,10 @@ impl RunDir {
     /// Writes `bytes` to `file` in the folder atomically.
     ///
     /// # Errors
-    /// [`Error::Core`] with an I/O error naming the file.
+    /// [`Error::Write`] naming the file, what survives and how to finish.
     pub fn write(&self, file: &str, bytes: &[u8]) -> Result<()> {
-        red_core::checkpoint::write_atomic(&self.file(file), bytes)?;
-        Ok(())
+        red_core::checkpoint::write_atomic(&self.file(file), bytes)
+            .map_err(|e| self.write_error(file, e))
     }
 
     /// Writes `value` as pretty JSON to `file` atomically.
@@ -76,6 +211,203 @@ impl RunDir {
             reason: format!("cannot serialise: {e}"),
         })?;
         self.write(file, text.as_bytes())
+    }
+
+    /// Saves the run's checkpoint (`checkpoint.json`) atomically with
+    /// [`red_core::checkpoint::save_checkpoint_for`].
+    ///
+    /// # Errors
+    /// As [`RunDir::write`].
+    pub fn save_checkpoint<C: serde::Serialize, T: serde::Serialize>(
+        &self,
+        kind: &str,
+        config: &C,
+        state: &T,
+    ) -> Result<()> {
+        red_core::checkpoint::save_checkpoint_for(&self.file(CHECKPOINT), kind, config, state)
+            .map_err(|e| self.write_error(CHECKPOINT, e))
+    }
+
+    /// A failed write of `file`, with what survives and how to finish.
+    fn write_error(&self, file: &str, e: red_core::Error) -> Error {
+        let survives = if file == CHECKPOINT {
+            format!(
+                "the previous {CHECKPOINT} (if any) is untouched; make room and continue \
+                 from it with --resume {}",
+                self.path.display()
+            )
+        } else {
+            format!(
+                "{file} was left as it was (no partial file); the files written before it \
+                 are whole and {CHECKPOINT} keeps the run: make room and finish it with \
+                 --resume {}",
+                self.path.display()
+            )
+        };
+        let reason = match e {
+            red_core::Error::Io { source, .. } => source.to_string(),
+            other => other.to_string(),
+        };
+        Error::Write {
+            path: self.file(file),
+            reason,
+            survives,
+        }
+    }
+}
+
+/// The checkpoint's file name in a run folder.
+pub const CHECKPOINT: &str = "checkpoint.json";
+
+/// `out_dir/name` after checking that `name` is plain ([`check_name`]).
+///
+/// # Errors
+/// As [`check_name`].
+pub fn path_in(out_dir: &Path, name: &str) -> Result<PathBuf> {
+    check_name(name)?;
+    Ok(out_dir.join(name))
+}
+
+/// Whether `dir` holds anything but a lock file.
+fn holds_files(dir: &Path) -> Result<bool> {
+    let io = |source| Error::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        if entry.map_err(io)?.file_name() != LOCK_FILE {
+            return Ok(true);
+        }
+    }
+    Ok(false)
+}
+
+/// The first free `<path>.old-<k>`, k = 1, 2, ...
+fn aside_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map_or_else(|| "run".into(), |n| n.to_string_lossy().into_owned());
+    (1..)
+        .map(|k| path.with_file_name(format!("{name}.old-{k}")))
+        .find(|p| !p.exists())
+        .unwrap_or_else(|| path.with_file_name(format!("{name}.old")))
+}
+
+/// Refuses `dir` if a running process holds its lock.
+fn refuse_if_locked(dir: &Path) -> Result<()> {
+    match read_lock(&dir.join(LOCK_FILE)) {
+        Some(pid) if pid_alive(pid) => Err(in_use(dir, pid)),
+        _ => Ok(()),
+    }
+}
+
+fn in_use(dir: &Path, pid: u32) -> Error {
+    Error::Input {
+        path: dir.to_path_buf(),
+        reason: format!(
+            "is in use by another run (process {pid}, lock file {}); wait for it to end or \
+             stop it, or choose another --name",
+            dir.join(LOCK_FILE).display()
+        ),
+    }
+}
+
+/// The pid in a lock file, if it holds one.
+fn read_lock(path: &Path) -> Option<u32> {
+    std::fs::read_to_string(path).ok()?.trim().parse().ok()
+}
+
+/// Whether process `pid` is running (on Linux: `/proc/<pid>` exists and is
+/// not a zombie; elsewhere every pid is taken as running, so a lock is
+/// never taken over there).
+fn pid_alive(pid: u32) -> bool {
+    if pid == std::process::id() {
+        return true;
+    }
+    if cfg!(target_os = "linux") {
+        match std::fs::read_to_string(format!("/proc/{pid}/stat")) {
+            // The state follows the command name in parentheses.
+            Ok(stat) => stat
+                .rsplit_once(')')
+                .and_then(|(_, rest)| rest.trim_start().chars().next())
+                .is_none_or(|state| state != 'Z' && state != 'X'),
+            Err(_) => false,
+        }
+    } else {
+        true
+    }
+}
+
+/// The held lock of a run folder; dropping it removes the lock file.
+#[derive(Debug)]
+struct RunLock {
+    path: PathBuf,
+}
+
+impl RunLock {
+    /// Takes `dir`'s lock: the file is made whole beside it and hard-linked
+    /// into place, which fails if a lock exists, so a reader never sees an
+    /// empty lock. A lock whose process is gone is taken over (the note
+    /// says so).
+    fn acquire(dir: &Path) -> Result<(Self, Option<String>)> {
+        let path = dir.join(LOCK_FILE);
+        let pid = std::process::id();
+        let tmp = dir.join(format!(".{LOCK_FILE}.{pid}"));
+        let io = |p: &Path| {
+            let p = p.to_path_buf();
+            move |source| Error::Io { path: p, source }
+        };
+        std::fs::File::create(&tmp)
+            .and_then(|mut f| writeln!(f, "{pid}"))
+            .map_err(io(&tmp))?;
+        let mut note = None;
+        let result = loop {
+            match std::fs::hard_link(&tmp, &path) {
+                Ok(()) => break Ok(Self { path: path.clone() }),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && note.is_none() => {
+                    let holder = read_lock(&path);
+                    match holder {
+                        Some(h) if pid_alive(h) => break Err(in_use(dir, h)),
+                        Some(h) => {
+                            note = Some(format!(
+                                "took over the lock {} of process {h}, which is no longer \
+                                 running",
+                                path.display()
+                            ));
+                        }
+                        None => {
+                            note = Some(format!(
+                                "took over the lock {}, which names no process",
+                                path.display()
+                            ));
+                        }
+                    }
+                    let _ = std::fs::remove_file(&path);
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    // Another process took it between our removal and
+                    // our link.
+                    break Err(in_use(dir, read_lock(&path).unwrap_or(0)));
+                }
+                Err(source) => {
+                    break Err(Error::Io {
+                        path: path.clone(),
+                        source,
+                    });
+                }
+            }
+        };
+        let _ = std::fs::remove_file(&tmp);
+        result.map(|lock| (lock, note))
+    }
+}
+
+impl Drop for RunLock {
+    fn drop(&mut self) {
+        // Only our own lock: never one another process took over.
+        if read_lock(&self.path) == Some(std::process::id()) {
+            let _ = std::fs::remove_file(&self.path);
+        }
     }
 }
 
@@ -150,7 +482,53 @@ mod tests {
         run.write("a.txt", b"hello").unwrap();
         assert_eq!(std::fs::read(run.file("a.txt")).unwrap(), b"hello");
         run.write_json("b.json", &vec![1, 2]).unwrap();
-        let left: Vec<_> = std::fs::read_dir(run.path()).unwrap().collect();
-        assert_eq!(left.len(), 2, "no temporary file is left behind");
+        let mut left: Vec<_> = std::fs::read_dir(run.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["a.txt", "b.json", LOCK_FILE], "no temporary file");
+        drop(run);
+        assert!(
+            !dir.path().join("r").join(LOCK_FILE).exists(),
+            "lock released"
+        );
+    }
+
+    #[test]
+    fn a_folder_with_a_run_is_refused_or_moved_aside() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = RunDir::create(dir.path(), "r").unwrap();
+        run.write("eval.json", b"old").unwrap();
+        drop(run);
+        let e = RunDir::create(dir.path(), "r").unwrap_err().to_string();
+        assert!(e.contains("--resume") && e.contains("--force"), "{e}");
+        let run = RunDir::create_with(dir.path(), "r", Existing::MoveAside).unwrap();
+        assert!(run.notes()[0].contains("r.old-1"), "{:?}", run.notes());
+        assert!(
+            !run.file("eval.json").exists(),
+            "the new folder starts empty"
+        );
+        let old = dir.path().join("r.old-1/eval.json");
+        assert_eq!(std::fs::read(old).unwrap(), b"old");
+    }
+
+    #[test]
+    fn a_held_lock_refuses_and_a_stale_one_is_taken_over() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = RunDir::create(dir.path(), "r").unwrap();
+        let e = RunDir::open(run.path()).unwrap_err().to_string();
+        assert!(e.contains(&std::process::id().to_string()), "{e}");
+        let e = RunDir::create_with(dir.path(), "r", Existing::MoveAside)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("in use"), "{e}");
+        let path = run.path().to_path_buf();
+        run.write("config.json", b"{}").unwrap();
+        drop(run);
+        // A pid above Linux's maximum (2^22) is never running.
+        std::fs::write(path.join(LOCK_FILE), "4194305\n").unwrap();
+        let run = RunDir::open(&path).unwrap();
+        assert!(run.notes()[0].contains("4194305"), "{:?}", run.notes());
     }
 }

@@ -439,25 +439,32 @@ pub struct ToyReport {
     pub wall_time_s: f64,
 }
 
-/// Runs the experiment of `config` into the folder `out` on `threads`
-/// worker threads.
+/// Runs the experiment of `config` into the new run folder `dir` (see
+/// [`RunDir::create_with`]) on `threads` worker threads.
 ///
 /// # Errors
-/// Invalid settings, a failing run (what finished is kept in the
-/// checkpoint), or files that cannot be written.
+/// Invalid settings (`threads` 0 included), a failing run (what finished
+/// is kept in the checkpoint), or files that cannot be written.
 pub fn run_new(
     config: ToyConfig,
-    out: &Path,
+    dir: RunDir,
     threads: usize,
     stop: &AtomicBool,
     progress: &mut dyn Progress,
 ) -> Result<ToyOutcome> {
     config.validate()?;
-    let name = out
-        .file_name()
-        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-    let dir = RunDir::create(out.parent().unwrap_or(Path::new(".")), &name)?;
+    check_threads(threads)?;
     run_grid(config, dir, None, threads, stop, progress)
+}
+
+fn check_threads(threads: usize) -> Result<()> {
+    if threads == 0 {
+        return Err(Error::InvalidConfig {
+            field: "threads".into(),
+            reason: "must be at least 1 (leave it out to use every core)".into(),
+        });
+    }
+    Ok(())
 }
 
 /// Continues the toy run saved in `dir`: its settings come from its
@@ -471,13 +478,15 @@ pub fn resume(
     stop: &AtomicBool,
     progress: &mut dyn Progress,
 ) -> Result<ToyOutcome> {
+    check_threads(threads)?;
+    let run_dir =
+        RunDir::open(dir).with_context(|| format!("cannot resume from {}", dir.display()))?;
     let path = dir.join(CHECKPOINT);
     let cp: ToyCheckpoint = red_core::checkpoint::load_checkpoint(&path, CHECKPOINT_KIND)
         .with_context(|| format!("cannot resume from {}", dir.display()))?;
     cp.config
         .validate()
         .with_context(|| format!("settings in {}", path.display()))?;
-    let run_dir = RunDir::open(dir)?;
     run_grid(
         cp.config,
         run_dir,
@@ -497,6 +506,9 @@ fn run_grid(
     progress: &mut dyn Progress,
 ) -> Result<ToyOutcome> {
     let checkpoint_path = dir.file(CHECKPOINT);
+    for n in dir.notes() {
+        progress.note(n);
+    }
     let start = std::time::Instant::now();
     let mut jobs = Vec::new();
     for &n in &config.n {
@@ -579,11 +591,7 @@ fn run_grid(
                         .and_then(|r| {
                             let mut s = state.lock().map_err(|_| poisoned())?;
                             s.results[i] = Some(r);
-                            red_core::checkpoint::save_checkpoint(
-                                &checkpoint_path,
-                                CHECKPOINT_KIND,
-                                &*s,
-                            )?;
+                            dir.save_checkpoint(CHECKPOINT_KIND, &config, &*s)?;
                             Ok(())
                         });
                     if let Err(e) = outcome {

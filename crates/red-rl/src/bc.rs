@@ -150,18 +150,28 @@ pub fn behavior_clone<R: Rng + ?Sized>(
             let out = policy.net().forward_tape(x.view(), &mut tape);
             let mut g = Array2::<f32>::zeros((m, 2 * k));
             let mut loss = 0.0f64;
+            let mut first_bad = None;
             let scale = 2.0 / (m * k) as f64;
             for (r, &i) in chunk.iter().enumerate() {
                 for j in 0..k {
                     let d = out[[r, j]] as f64 - actions[[i, j]];
+                    if !(d * d).is_finite() && first_bad.is_none() {
+                        first_bad = Some(i);
+                    }
                     loss += d * d;
                     g[[r, j]] = (scale * d) as f32;
                 }
             }
             loss /= (m * k) as f64;
             if !loss.is_finite() {
+                let pair = first_bad.map_or_else(String::new, |i| {
+                    format!(
+                        " (first non-finite at demonstration pair {i} of {n}, counted through \
+                         the trajectories in order)"
+                    )
+                });
                 return Err(Error::NonFinite {
-                    what: "behaviour-cloning loss".into(),
+                    what: format!("behaviour-cloning loss{pair}"),
                     step: epoch as u64,
                 });
             }

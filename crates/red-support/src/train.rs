@@ -60,8 +60,22 @@ pub(crate) fn fit_regression<R: Rng + ?Sized>(
             let pred = net.forward_tape(xb.view(), &mut tape);
             let loss = mse_loss_into(pred, yb.view(), &mut gout);
             if !loss.is_finite() {
+                // Name the first pair whose input, target or prediction is
+                // not finite (its index among the fitted rows).
+                let bad = (0..m).find(|&r| {
+                    let row_bad =
+                        |a: ndarray::ArrayView1<'_, f32>| a.iter().any(|v| !v.is_finite());
+                    row_bad(xb.row(r)) || row_bad(yb.row(r)) || row_bad(pred.row(r))
+                });
+                let pair = bad.map_or_else(String::new, |r| {
+                    format!(
+                        " (first non-finite value at pair {} of the {n} fitted pairs, counted \
+                         through the trajectories in order)",
+                        chunk[r]
+                    )
+                });
                 return Err(Error::NonFinite {
-                    what: format!("training loss at epoch {epoch}"),
+                    what: format!("training loss at epoch {epoch}{pair}"),
                 });
             }
             grads.zero();

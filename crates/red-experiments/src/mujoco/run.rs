@@ -26,7 +26,7 @@ use std::time::Instant;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use red_core::checkpoint::{load_checkpoint, save_checkpoint, write_atomic};
+use red_core::checkpoint::{load_checkpoint_for, write_atomic};
 use red_core::{Demos, Env, EpisodeEnd, RewardModel, Seeder, Space, Stream, Trajectory};
 use red_mujoco::watched::MJ_N_WARNING;
 use red_mujoco::{EnvId, MujocoEnv, WatchedEnv, describe_warnings};
@@ -527,10 +527,11 @@ pub fn read_config(dir: &Path) -> Result<RunConfig> {
         path: p.clone(),
         reason: format!("cannot read it ({e}); is {} a run folder?", dir.display()),
     })?;
-    let cfg: RunConfig = serde_json::from_str(&text).map_err(|e| Error::Input {
-        path: p.clone(),
-        reason: format!("parsing: {e}"),
-    })?;
+    let cfg: RunConfig =
+        serde_json::from_str(text.trim_start_matches('\u{feff}')).map_err(|e| Error::Input {
+            path: p.clone(),
+            reason: format!("parsing: {e}"),
+        })?;
     cfg.validate()
         .with_context(|| format!("checking {}", p.display()))?;
     Ok(cfg)
@@ -684,10 +685,82 @@ fn check_batch_finite(batch: &red_rl::rollout::RolloutBatch, step: u64) -> Resul
     Ok(())
 }
 
-/// Starts a new run in `dir` (which must not hold one) with `cfg`, or
-/// continues the one there when `resume` (its `config.json` is used; `cfg`
-/// only supplies the step budget: a larger one trains on, one at or below
-/// the steps done ends the run there, with its evaluation).
+/// How [`run_with`] treats the run folder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Start {
+    /// A new run; a folder that holds files is refused.
+    New,
+    /// A new run; a folder that holds files is moved aside first
+    /// ([`crate::run_dir::Existing::MoveAside`]).
+    Force,
+    /// Continue the run in the folder.
+    Resume,
+}
+
+impl Start {
+    /// From the command line's `--resume` and `--force`.
+    pub fn from_flags(resume: bool, force: bool) -> Self {
+        match (resume, force) {
+            (true, _) => Self::Resume,
+            (false, true) => Self::Force,
+            (false, false) => Self::New,
+        }
+    }
+}
+
+/// [`run_with`] with [`Start::Resume`] when `resume`, else [`Start::New`].
+///
+/// # Errors
+/// As [`run_with`].
+pub fn run(
+    dir: &Path,
+    cfg: Option<RunConfig>,
+    resume: bool,
+    stop: &AtomicBool,
+    progress: &mut dyn Progress,
+) -> Result<Outcome> {
+    let start = if resume { Start::Resume } else { Start::New };
+    run_with(dir, cfg, start, stop, progress)
+}
+
+/// The settings a checkpoint must have been made with: all but the step
+/// budget, which a resume may change.
+fn checkpoint_settings(cfg: &RunConfig) -> RunConfig {
+    RunConfig {
+        steps: 0,
+        ..cfg.clone()
+    }
+}
+
+impl RunState {
+    /// Values that make no sense even in a whole file.
+    fn check(&self, cfg: &RunConfig) -> std::result::Result<(), String> {
+        let t = &self.trainer;
+        if t.config() != &cfg.trpo {
+            return Err(
+                "the TRPO learner was made with other settings than config.json's trpo".into(),
+            );
+        }
+        crate::checks::check_policy("the policy", t.policy(), &cfg.trpo.policy.hidden)?;
+        let expected = t.iteration() * cfg.trpo.steps_per_batch as u64;
+        if t.env_steps() != expected {
+            return Err(format!(
+                "has {} environment steps after {} iterations of {} steps: they must be {expected}",
+                t.env_steps(),
+                t.iteration(),
+                cfg.trpo.steps_per_batch
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Starts a new run in `dir` (which must not hold one, unless
+/// [`Start::Force`] moves it aside) with `cfg`, or continues the one there
+/// ([`Start::Resume`]: its `config.json` is used; `cfg` only supplies the
+/// step budget: a larger one trains on, one at or below the steps done ends
+/// the run there, with its evaluation). The folder is locked for the run's
+/// life ([`RunDir`]).
 ///
 /// `stop` is checked before every TRPO iteration: once set, the run saves
 /// its checkpoint and returns [`Outcome::Interrupted`]. `progress` hears of
@@ -696,17 +769,20 @@ fn check_batch_finite(batch: &red_rl::rollout::RolloutBatch, step: u64) -> Resul
 ///
 /// # Errors
 /// Bad settings or files, a failed fit, a non-finite quantity during
-/// training (the last good checkpoint is kept), an environment error.
-pub fn run(
+/// training (the last good checkpoint is kept), an environment error; a
+/// checkpoint that fails its checksum, was made with other settings than
+/// `config.json` or holds values that make no sense.
+pub fn run_with(
     dir: &Path,
     cfg: Option<RunConfig>,
-    resume: bool,
+    start: Start,
     stop: &AtomicBool,
     progress: &mut dyn Progress,
 ) -> Result<Outcome> {
+    let resume = start == Start::Resume;
     let (rd, cfg, state) = if resume {
-        let mut saved = read_config(dir)?;
         let rd = RunDir::open(dir)?;
+        let mut saved = read_config(dir)?;
         if let Some(c) = &cfg
             && c.steps != saved.steps
         {
@@ -714,9 +790,15 @@ pub fn run(
             rd.write_json("config.json", &saved)?;
         }
         let state = if rd.file("checkpoint.json").is_file() {
-            let s: RunState = load_checkpoint(&rd.file("checkpoint.json"), CHECKPOINT_KIND)
-                .with_context(|| format!("resuming {}", dir.display()))?;
+            let path = rd.file("checkpoint.json");
+            let s: RunState =
+                load_checkpoint_for(&path, CHECKPOINT_KIND, &checkpoint_settings(&saved))
+                    .with_context(|| format!("resuming {}", dir.display()))?;
             s.trainer.config().validate()?;
+            s.check(&saved).map_err(|reason| Error::Input {
+                path: path.clone(),
+                reason: format!("{reason}; the checkpoint cannot be resumed"),
+            })?;
             Some(s)
         } else {
             None
@@ -728,26 +810,17 @@ pub fn run(
             reason: "no settings given for a new run".into(),
         })?;
         cfg.validate()?;
-        if dir.join("config.json").exists() {
-            return Err(Error::Input {
-                path: dir.to_path_buf(),
-                reason: format!(
-                    "already holds a run; continue it with --resume {} or choose another --name",
-                    dir.display()
-                ),
-            });
-        }
         if let (true, Some(p)) = (cfg.method.needs_demo(), &cfg.demo) {
             load_demos(p, cfg.env)?;
         }
-        std::fs::create_dir_all(dir).map_err(|source| Error::Io {
-            path: dir.to_path_buf(),
-            source,
-        })?;
-        let rd = RunDir::open(dir)?;
+        let existing = crate::run_dir::Existing::from_force(start == Start::Force);
+        let rd = RunDir::new_at(dir, existing)?;
         rd.write_json("config.json", &cfg)?;
         (rd, cfg, None)
     };
+    for n in rd.notes() {
+        progress.note(n);
+    }
     let session = Instant::now();
     let mut env = WatchedEnv::new(cfg.env).with_context(|| format!("cannot build {}", cfg.env))?;
     let (od, ad) = (env.observation_space().dim(), env.action_space().dim());
@@ -771,7 +844,7 @@ pub fn run(
         Some(s) => s,
         None => {
             let s = fresh_state(&cfg, demos.as_ref(), od, ad)?;
-            save_checkpoint(&rd.file("checkpoint.json"), CHECKPOINT_KIND, &s)?;
+            rd.save_checkpoint(CHECKPOINT_KIND, &checkpoint_settings(&cfg), &s)?;
             if let (Some(ImitationReward::Support(r)), Some(d)) = (&s.reward, &demos) {
                 let (es, ea) = d.pairs();
                 let on = r.rewards(es.view(), ea.view())?;
@@ -810,7 +883,7 @@ pub fn run(
     let save = |state: &mut RunState, metrics: &mut std::io::BufWriter<std::fs::File>| {
         state.wall_s = wall_before + session.elapsed().as_secs_f64();
         metrics.flush().map_err(io_error)?;
-        save_checkpoint(&rd.file("checkpoint.json"), CHECKPOINT_KIND, &*state)?;
+        rd.save_checkpoint(CHECKPOINT_KIND, &checkpoint_settings(&cfg), &*state)?;
         Ok::<(), Error>(())
     };
 

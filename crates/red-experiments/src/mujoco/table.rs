@@ -93,6 +93,21 @@ impl TableConfig {
         if self.envs.is_empty() || self.methods.is_empty() {
             return bad("envs", "needs at least one task and one method");
         }
+        if self.steps == 0 {
+            return bad("steps", "must be at least 1");
+        }
+        if self.checkpoint_every == 0 {
+            return bad("checkpoint_every", "must be at least 1");
+        }
+        if self.eval_episodes == 0 {
+            return bad("eval_episodes", "must be at least 1");
+        }
+        if self.jobs == Some(0) {
+            return bad(
+                "jobs",
+                "must be at least 1 (leave it out to use every core)",
+            );
+        }
         crate::run_dir::check_name(&self.name)?;
         Ok(())
     }
