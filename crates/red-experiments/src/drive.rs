@@ -4,7 +4,8 @@
 //! demonstration, `ae` the autoencoder; both set `σ1` from held-out expert
 //! scores and add the terminal heuristic. `gail` and `gmmil` learn rewards
 //! that adapt to the policy's pairs. All four improve the policy with
-//! SVG(1)-ER on their reward; `bc` is the warm start alone.
+//! SVG(1)-ER on their reward (or SAC, `learner: sac`); `bc` is the warm
+//! start alone.
 //!
 //! The demonstration's road comes from the demo file ([`load_demo`]); the
 //! final policy of training is evaluated with deterministic actions on that
