@@ -24,8 +24,13 @@ const TINY: &str = r#"{
 }"#;
 
 fn cli(args: &[&str], dir: &Path) -> Output {
+    cli_with(TINY, args, dir)
+}
+
+/// [`cli`] with another training config.
+fn cli_with(train_config: &str, args: &[&str], dir: &Path) -> Output {
     let cfg = dir.join("tiny.json");
-    std::fs::write(&cfg, TINY).unwrap();
+    std::fs::write(&cfg, train_config).unwrap();
     Command::new(env!("CARGO_BIN_EXE_red-cli"))
         .args(["drive", "--train-config"])
         .arg(&cfg)
@@ -179,6 +184,57 @@ fn interrupted_run_resumes_to_the_same_numbers() {
     );
     let last = resume(&[]);
     ok(&last);
+    assert_eq!(numbers(&cut), numbers(&dir.path().join("whole")));
+}
+
+#[test]
+fn sac_learner_runs_and_resumes_to_the_same_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cfg: serde_json::Value = serde_json::from_str(TINY).unwrap();
+    cfg["learner"] = "sac".into();
+    cfg["sac"] = serde_json::json!({"hidden": [16], "learning_starts": 100, "batch_size": 16});
+    let cfg = cfg.to_string();
+    let demo = demo();
+    let run = |name: &str, extra: &[&str]| {
+        let mut args = vec![
+            "--demo",
+            demo.to_str().unwrap(),
+            "--methods",
+            "red",
+            "--steps",
+            "400",
+            "--seed",
+            "3",
+            "--name",
+            name,
+            "--checkpoint-every",
+            "150",
+        ];
+        args.extend_from_slice(extra);
+        cli_with(&cfg, &args, dir.path())
+    };
+    let whole = run("whole", &[]);
+    ok(&whole);
+    let config: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("whole/config.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(config["train"]["learner"], "sac");
+    let (_, metrics) = numbers(&dir.path().join("whole"));
+    assert!(metrics.contains("red,train,"), "{metrics}");
+    let first = run("cut", &["--interrupt-after", "250"]);
+    assert_eq!(
+        first.status.code(),
+        Some(130),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let cut = dir.path().join("cut");
+    ok(&cli_with(
+        &cfg,
+        &["--resume", cut.to_str().unwrap()],
+        dir.path(),
+    ));
     assert_eq!(numbers(&cut), numbers(&dir.path().join("whole")));
 }
 

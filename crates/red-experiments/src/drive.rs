@@ -4,7 +4,8 @@
 //! demonstration, `ae` the autoencoder; both set `σ1` from held-out expert
 //! scores and add the terminal heuristic. `gail` and `gmmil` learn rewards
 //! that adapt to the policy's pairs. All four improve the policy with
-//! SVG(1)-ER on their reward; `bc` is the warm start alone.
+//! SVG(1)-ER on their reward (or SAC, `learner: sac`); `bc` is the warm
+//! start alone.
 //!
 //! The demonstration's road comes from the demo file ([`load_demo`]); the
 //! final policy of training is evaluated with deterministic actions on that
@@ -38,7 +39,8 @@ use red_rl::gail::GailConfig;
 use red_rl::gmmil::GmmilConfig;
 use red_rl::normalize::ObsNormalizer;
 use red_rl::policy::{GaussianPolicy, GaussianPolicyConfig};
-use red_rl::svg::{Svg1, SvgConfig};
+use red_rl::sac::{Sac, SacConfig};
+use red_rl::svg::{EpisodeOutcome, Svg1, SvgConfig};
 use red_support::{
     AutoencoderConfig, ExpertScores, RndConfig, Sigma1, TerminalHeuristic, TerminalHeuristicConfig,
 };
@@ -122,6 +124,12 @@ pub struct DriveTrainConfig {
     pub bc: BcConfig,
     /// SVG(1)-ER.
     pub svg: SvgConfig,
+    /// The learner of `red`, `ae`, `gail` and `gmmil`: `svg` (SVG(1)-ER, the
+    /// paper's; the default) or `sac` (Soft Actor-Critic on the same reward
+    /// and terminal heuristic; our addition, docs/results/drive.md).
+    pub learner: DriveLearner,
+    /// SAC, when `learner` is `sac`.
+    pub sac: SacConfig,
     /// Every this many environment steps (at the next episode's end) the
     /// deterministic policy drives `select_episodes` episodes; the policy
     /// whose episodes earn the highest return under the method's OWN reward
@@ -203,10 +211,86 @@ impl Default for DriveTrainConfig {
                 fixed_std: Some(0.1),
                 ..SvgConfig::default()
             },
+            learner: DriveLearner::Svg,
+            sac: drive_sac_config(),
             select_every: 1_000,
             select_episodes: 5,
             checkpoint_every: 5_000,
             train_roads: 0,
+        }
+    }
+}
+
+/// Which learner improves the policy on a method's reward.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DriveLearner {
+    /// SVG(1)-ER (Heess et al. 2015), the paper's.
+    Svg,
+    /// Soft Actor-Critic (Haarnoja et al. 2018) with a tanh-squashed actor.
+    Sac,
+}
+
+/// SAC's settings for driving: the library's (Haarnoja et al. 2018b,
+/// Table 1) except where marked:
+/// - `hidden` `[100, 100]` (Table 1: 256, 256): the width of the policy and
+///   of SVG's networks, so both learners cost about the same per step;
+/// - `batch_size` 64 (Table 1: 256): SVG's, for the same reason;
+/// - `buffer_size` 100,000: SVG's; it holds every step of a 20,000-step run.
+fn drive_sac_config() -> SacConfig {
+    SacConfig {
+        hidden: vec![100, 100],
+        batch_size: 64,
+        buffer_size: 100_000,
+        ..SacConfig::default()
+    }
+}
+
+/// Steps of the squashed fit that carries the warm start over to SAC's
+/// tanh-squashed actor ([`Sac::fit_squashed_mean`]), on minibatches of 64.
+const SAC_WARM_FIT_STEPS: usize = 2_000;
+
+/// The learner of a method in training.
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(untagged)]
+enum Learner {
+    Svg(Box<Svg1>),
+    Sac(Box<Sac>),
+}
+
+impl Learner {
+    fn env_steps(&self) -> u64 {
+        match self {
+            Self::Svg(l) => l.env_steps(),
+            Self::Sac(l) => l.env_steps(),
+        }
+    }
+
+    fn reported_policy(&self) -> &GaussianPolicy {
+        match self {
+            Self::Svg(l) => l.reported_policy(),
+            Self::Sac(l) => l.policy(),
+        }
+    }
+
+    fn name(&self) -> &'static str {
+        match self {
+            Self::Svg(_) => "SVG",
+            Self::Sac(_) => "SAC",
+        }
+    }
+
+    fn run_episode(
+        &mut self,
+        env: &mut dyn Env,
+        reward: &dyn DifferentiableReward,
+        terminal: &dyn Fn(f64) -> f64,
+        max_steps: u64,
+        rng: &mut ChaCha8Rng,
+    ) -> red_rl::Result<EpisodeOutcome> {
+        match self {
+            Self::Svg(l) => l.run_episode(env, reward, None, terminal, max_steps, rng),
+            Self::Sac(l) => l.run_episode(env, reward, None, terminal, max_steps, rng),
         }
     }
 }
@@ -235,6 +319,7 @@ impl DriveTrainConfig {
         self.policy.validate().with_context(|| "train.policy")?;
         self.bc.validate().with_context(|| "train.bc")?;
         self.svg.validate().with_context(|| "train.svg")?;
+        self.sac.validate().with_context(|| "train.sac")?;
         let r = &self.sigma1;
         if !(r.quantile > 0.0 && r.quantile <= 1.0) {
             return Err(invalid(
@@ -624,7 +709,9 @@ struct MethodState {
     #[serde(with = "stored_reward")]
     reward: ImitationReward,
     terminal: Option<TerminalHeuristic>,
-    svg: Svg1,
+    /// The learner (SVG(1)-ER or SAC); named `svg` for the checkpoints
+    /// written before SAC.
+    svg: Learner,
     rng: ChaCha8Rng,
     pending: Vec<(Vec<f64>, Vec<f64>)>,
     recent: Vec<f64>,
@@ -960,7 +1047,11 @@ fn train_method(
     let mut env = make_env(&run.drive)?;
     env.inner_mut()
         .set_road_pool(TRAIN_FIRST_TRACK_SEED, cfg.train_roads);
-    progress.start(&format!("{}/SVG", st.method), cfg.steps, st.svg.env_steps());
+    progress.start(
+        &format!("{}/{}", st.method, st.svg.name()),
+        cfg.steps,
+        st.svg.env_steps(),
+    );
     let mut next_save = st
         .svg
         .env_steps()
@@ -989,7 +1080,7 @@ fn train_method(
             } = &mut *st;
             let term = |r: f64| terminal.as_ref().map_or(0.0, |t| t.penalty(r));
             let at = svg.env_steps();
-            svg.run_episode(&mut env, &*reward, None, &term, left, rng)
+            svg.run_episode(&mut env, &*reward, &term, left, rng)
                 .map_err(|e| step_err(e, at))?
         };
         if ep.finished {
@@ -1048,10 +1139,22 @@ fn start_method(
     let (fit_seed, svg_seed) = method_seeds(run.seed, method);
     let (reward, terminal) = fit_reward(&run.train, method, fit_seed, es, ea, progress)?;
     let mut rng = ChaCha8Rng::seed_from_u64(svg_seed);
-    let mut svg = Svg1::new(&run.train.svg, warm.clone(), &mut rng)?;
-    if run.train.svg.bc_weight > 0.0 {
-        svg.set_demos(es.to_owned(), ea.to_owned());
-    }
+    let svg = match run.train.learner {
+        DriveLearner::Svg => {
+            let mut svg = Svg1::new(&run.train.svg, warm.clone(), &mut rng)?;
+            if run.train.svg.bc_weight > 0.0 {
+                svg.set_demos(es.to_owned(), ea.to_owned());
+            }
+            Learner::Svg(Box::new(svg))
+        }
+        DriveLearner::Sac => {
+            let mut actor = warm.clone();
+            actor.set_squash(true);
+            let mut sac = Sac::new(&run.train.sac, actor, &mut rng)?;
+            sac.fit_squashed_mean(es, ea, SAC_WARM_FIT_STEPS, 64, &mut rng)?;
+            Learner::Sac(Box::new(sac))
+        }
+    };
     Ok(MethodState {
         method: method.into(),
         reward,

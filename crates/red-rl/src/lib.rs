@@ -1,4 +1,4 @@
-//! Learners of the red workspace: DQN, TRPO, SVG(1)-ER, behaviour cloning,
+//! Learners of the red workspace: DQN, TRPO, SVG(1)-ER, SAC, behaviour cloning,
 //! and the imitation baselines whose reward adapts during training, GAIL and
 //! GMMIL. Learners are generic over [`red_core::Env`] and take any
 //! [`red_core::RewardModel`].
@@ -13,6 +13,7 @@ pub mod normalize;
 pub mod policy;
 pub mod replay;
 pub mod rollout;
+pub mod sac;
 pub mod svg;
 pub mod trpo;
 

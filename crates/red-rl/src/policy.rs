@@ -57,6 +57,13 @@ pub struct GaussianPolicyConfig {
     /// as OpenAI baselines' policy head (`normc_initializer(0.01)`), so the
     /// first policy has mean ~0 and log-std ~`init_log_std` everywhere.
     pub output_scale: f32,
+    /// Whether the actions this policy emits ([`GaussianPolicy::act_into`],
+    /// [`GaussianPolicy::act_deterministic`]) are squashed by `tanh` into
+    /// `(-1, 1)`: the tanh-squashed Gaussian of SAC (Haarnoja et al. 2018,
+    /// Appendix C). The distribution methods (`distribution`, `log_prob`)
+    /// still describe the Gaussian before the squash; SVG(1)-ER and TRPO
+    /// refuse a squashed policy. Default false.
+    pub squash: bool,
 }
 
 impl Default for GaussianPolicyConfig {
@@ -68,6 +75,7 @@ impl Default for GaussianPolicyConfig {
             log_std_min: -5.0,
             log_std_max: 2.0,
             output_scale: 0.01,
+            squash: false,
         }
     }
 }
@@ -343,6 +351,12 @@ impl GaussianPolicy {
             act_dim,
             normalizer,
         })
+    }
+
+    /// Turns the `tanh` squash of emitted actions on or off (a policy
+    /// cloned without it can become SAC's actor).
+    pub fn set_squash(&mut self, on: bool) {
+        self.config.squash = on;
     }
 
     /// The settings.
@@ -648,6 +662,11 @@ impl GaussianPolicy {
                 for j in 0..k {
                     action[j] = out[j] as f64;
                 }
+            }
+        }
+        if self.config.squash {
+            for a in action.iter_mut() {
+                *a = a.tanh();
             }
         }
         Ok(())

@@ -336,6 +336,12 @@ impl Svg1 {
         rng: &mut R,
     ) -> Result<Self> {
         config.validate()?;
+        if policy.config().squash {
+            return Err(Error::InvalidConfig {
+                field: "policy.squash".into(),
+                reason: "SVG(1)-ER needs an unsquashed Gaussian policy".into(),
+            });
+        }
         let (o, a) = (policy.obs_dim(), policy.act_dim());
         let model = Mlp::new(
             &MlpConfig::new(o + a, &config.hidden, o)
