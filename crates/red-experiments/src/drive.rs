@@ -280,6 +280,22 @@ impl Learner {
         }
     }
 
+    /// The policy being trained (not an averaged copy).
+    fn policy(&self) -> &GaussianPolicy {
+        match self {
+            Self::Svg(l) => l.policy(),
+            Self::Sac(l) => l.policy(),
+        }
+    }
+
+    /// Whether the learner is the one `train` asks for, with its settings.
+    fn made_with(&self, train: &DriveTrainConfig) -> bool {
+        match self {
+            Self::Svg(l) => train.learner == DriveLearner::Svg && l.config() == &train.svg,
+            Self::Sac(l) => train.learner == DriveLearner::Sac && l.config() == &train.sac,
+        }
+    }
+
     fn run_episode(
         &mut self,
         env: &mut dyn Env,
@@ -759,10 +775,11 @@ impl Checkpoint {
             if self.config.methods.get(self.done.len()) != Some(&st.method) {
                 return Err(format!("{what} is not the run's next method"));
             }
-            if st.svg.config() != &train.svg {
+            if !st.svg.made_with(train) {
                 return Err(format!(
-                    "{what}: the SVG(1)-ER learner was made with other settings than the run's \
-                     train.svg"
+                    "{what}: the {} learner was made with other settings than the run's \
+                     train.learner and its settings",
+                    st.svg.name()
                 ));
             }
             check_policy(&what, st.svg.policy(), &train.policy.hidden)?;

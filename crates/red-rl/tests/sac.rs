@@ -84,7 +84,7 @@ impl DifferentiableReward for ReachReward {
         &self,
         states: ArrayView2<'_, f64>,
         actions: ArrayView2<'_, f64>,
-    ) -> red_rl::Result<(Array1<f64>, Array2<f64>)> {
+    ) -> red_core::Result<(Array1<f64>, Array2<f64>)> {
         let n = states.nrows();
         let mut r = Array1::zeros(n);
         let mut g = Array2::zeros((n, 2));
