@@ -73,7 +73,7 @@ pub(crate) fn read_json<T: serde::de::DeserializeOwned + Default>(
     let Some(text) = read_text(path)? else {
         return Ok(T::default());
     };
-    serde_json::from_str(&text).map_err(|e| {
+    serde_json::from_str(text.trim_start_matches('\u{feff}')).map_err(|e| {
         anyhow::anyhow!(
             "parsing {what} {}: {e}",
             path.unwrap_or("?".as_ref()).display()

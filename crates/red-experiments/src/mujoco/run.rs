@@ -19,7 +19,7 @@
 //!   4-trajectory demonstration file).
 
 use std::collections::VecDeque;
-use std::io::{BufRead, Write};
+use std::io::BufRead;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -572,7 +572,7 @@ fn metrics_row(m: &IterationMetrics, window: Option<f64>, warnings: u64, wall_s:
 
 /// Keeps the header and the rows of iterations up to `iteration` (the rows
 /// written after the checkpoint a run resumes from are dropped).
-fn truncate_metrics(path: &Path, iteration: u64) -> Result<()> {
+fn truncate_metrics(path: &Path, iteration: u64) -> Result<String> {
     let mut kept = format!("{METRICS_HEADER}\n");
     if let Ok(f) = std::fs::File::open(path) {
         for line in std::io::BufReader::new(f).lines().skip(1) {
@@ -588,7 +588,7 @@ fn truncate_metrics(path: &Path, iteration: u64) -> Result<()> {
         }
     }
     write_atomic(path, kept.as_bytes())?;
-    Ok(())
+    Ok(kept)
 }
 
 fn save_policy(path: &Path, policy: &GaussianPolicy) -> Result<()> {
@@ -861,18 +861,10 @@ pub fn run_with(
             s
         }
     };
-    truncate_metrics(&rd.file("metrics.csv"), state.trainer.iteration())?;
+    // metrics.csv is rewritten whole (atomically) after every iteration,
+    // never appended to: a failed write leaves the previous file intact.
     let metrics_path = rd.file("metrics.csv");
-    let io_error = |source| Error::Io {
-        path: metrics_path.clone(),
-        source,
-    };
-    let mut metrics = std::io::BufWriter::new(
-        std::fs::OpenOptions::new()
-            .append(true)
-            .open(&metrics_path)
-            .map_err(io_error)?,
-    );
+    let mut metrics = truncate_metrics(&metrics_path, state.trainer.iteration())?;
 
     progress.start(
         &format!("{} {}", super::short_name(cfg.env), cfg.method.name()),
@@ -880,9 +872,9 @@ pub fn run_with(
         state.trainer.env_steps().min(cfg.steps),
     );
     let wall_before = state.wall_s;
-    let save = |state: &mut RunState, metrics: &mut std::io::BufWriter<std::fs::File>| {
+    let save = |state: &mut RunState, metrics: &mut String| {
         state.wall_s = wall_before + session.elapsed().as_secs_f64();
-        metrics.flush().map_err(io_error)?;
+        rd.write("metrics.csv", metrics.as_bytes())?;
         rd.save_checkpoint(CHECKPOINT_KIND, &checkpoint_settings(&cfg), &*state)?;
         Ok::<(), Error>(())
     };
@@ -951,9 +943,8 @@ pub fn run_with(
         }
         let total_warnings: u64 = state.mujoco_warnings.iter().sum();
         let wall = wall_before + session.elapsed().as_secs_f64();
-        metrics
-            .write_all(metrics_row(&m, window, total_warnings, wall).as_bytes())
-            .map_err(io_error)?;
+        metrics.push_str(&metrics_row(&m, window, total_warnings, wall));
+        rd.write("metrics.csv", metrics.as_bytes())?;
         let msg = format!(
             "return(last {}) {}{}",
             cfg.best_window,
