@@ -42,6 +42,77 @@ pub const REACHER_RED_TRAJ_LEN: usize = 50;
 /// length was cut by it.
 pub const DEFAULT_MAX_EPISODE_STEPS: usize = 1000;
 
+/// The formats [`import_file`] reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ImportFormat {
+    /// The RED release's pickle ([`read_red_pickle`]).
+    RedPickle,
+    /// OpenAI baselines' expert `.npz` ([`read_baselines_npz`]).
+    BaselinesNpz,
+}
+
+impl ImportFormat {
+    /// Every format, in the order the CLI lists them.
+    pub const ALL: [ImportFormat; 2] = [ImportFormat::RedPickle, ImportFormat::BaselinesNpz];
+
+    /// The format's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            ImportFormat::RedPickle => "red-pickle",
+            ImportFormat::BaselinesNpz => "baselines-npz",
+        }
+    }
+}
+
+impl std::str::FromStr for ImportFormat {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| Error::InvalidConfig {
+                field: "from".into(),
+                reason: format!(
+                    "unknown format `{s}`; known: {}",
+                    Self::ALL.map(ImportFormat::name).join(", ")
+                ),
+            })
+    }
+}
+
+/// Reads `path` in `format` as demonstrations of `env_id`, marked as
+/// imported ([`crate::DemoSource::Imported`]). `steps` is the trajectory
+/// length of a RED pickle (default [`DEFAULT_RED_TRAJ_LEN`], or
+/// [`REACHER_RED_TRAJ_LEN`] when `env_id` names Reacher) or the time
+/// limit of a baselines `.npz` (default [`DEFAULT_MAX_EPISODE_STEPS`]).
+///
+/// # Errors
+/// As [`read_red_pickle`] and [`read_baselines_npz`], with the file named.
+pub fn import_file(
+    format: ImportFormat,
+    path: &Path,
+    env_id: &str,
+    steps: Option<usize>,
+) -> Result<Demos> {
+    let mut demos = match format {
+        ImportFormat::RedPickle => {
+            let reacher = env_id.to_ascii_lowercase().starts_with("reacher");
+            let default = if reacher {
+                REACHER_RED_TRAJ_LEN
+            } else {
+                DEFAULT_RED_TRAJ_LEN
+            };
+            read_red_pickle(path, env_id, steps.unwrap_or(default))?
+        }
+        ImportFormat::BaselinesNpz => {
+            read_baselines_npz(path, env_id, steps.unwrap_or(DEFAULT_MAX_EPISODE_STEPS))?
+        }
+    };
+    demos.source = Some(crate::DemoSource::Imported);
+    Ok(demos)
+}
+
 fn err(path: Option<&Path>, trajectory: Option<usize>, reason: String) -> Error {
     Error::Demo {
         path: path.map(Path::to_path_buf),

@@ -60,3 +60,37 @@ pub fn default_run_name(env: EnvId, method: Method, seed: u64) -> String {
         m => format!("{}-{}-s{seed}", short_name(env), m.name()),
     }
 }
+
+/// Converts `file` from another `format` into demonstrations of `env`
+/// (see [`red_core::import::import_file`]). A MuJoCo task (`hopper`,
+/// `Hopper-v5`, ...) is written by its Gymnasium id and the file's
+/// dimensions are checked against the task's; any other `env` is taken as
+/// it is.
+///
+/// # Errors
+/// The importer's errors, naming the file; [`Error::Input`] when the
+/// dimensions do not match the task's.
+pub fn import_demos(
+    format: red_core::import::ImportFormat,
+    file: &Path,
+    env: &str,
+    steps: Option<usize>,
+) -> crate::Result<red_core::Demos> {
+    let task = env.parse::<EnvId>().ok();
+    let env_id = task.map_or(env.to_string(), |t| t.name().to_string());
+    let demos = red_core::import::import_file(format, file, &env_id, steps)?;
+    if let Some(t) = task {
+        let made = t.make_unlimited()?;
+        let want = (made.observation_space().dim(), made.action_space().dim());
+        if (demos.obs_dim, demos.act_dim) != want {
+            return Err(crate::Error::Input {
+                path: file.to_path_buf(),
+                reason: format!(
+                    "obs {} x act {} pairs, but {env_id} has obs {} x act {}",
+                    demos.obs_dim, demos.act_dim, want.0, want.1
+                ),
+            });
+        }
+    }
+    Ok(demos)
+}
