@@ -280,6 +280,8 @@ pub struct DriveEnv {
     scratch: Vec<f64>,
     /// `(first, count)` of [`DriveEnv::set_road_pool`].
     road_pool: Option<(u64, u64)>,
+    /// `(states, share)` of [`DriveEnv::set_start_states`].
+    start_pool: Option<(Vec<CarState>, f64)>,
 }
 
 /// The default scenario wrapped in its time limit (`config.time_limit`).
@@ -329,6 +331,7 @@ impl DriveEnv {
             in_episode: false,
             scratch: Vec::with_capacity(OBS_DIM),
             road_pool: None,
+            start_pool: None,
         })
     }
 
@@ -338,6 +341,52 @@ impl DriveEnv {
     /// its own. `count = 0` turns it off (one road, as built).
     pub fn set_road_pool(&mut self, first: u64, count: u64) {
         self.road_pool = (count > 0).then_some((first, count));
+    }
+
+    /// Makes a share of the episodes start at one of `states` (drawn by the
+    /// reset's random stream) instead of at the road's start, with the same
+    /// start noise on the lateral offset, heading and speed; the others
+    /// start as usual. With the states a demonstration passed through, this
+    /// is reference-state initialisation (Peng et al. 2018, DeepMimic):
+    /// training episodes begin at every part of the demonstrated drive, so a
+    /// manoeuvre far down the road is practised as often as the start.
+    /// `share = 0` or no states turn it off (no random number is drawn
+    /// then, so episodes are as without it). The states are for this env's
+    /// road: a road pool ([`DriveEnv::set_road_pool`]) cannot be combined
+    /// with it.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for a share outside `[0, 1]`, a non-finite
+    /// state, or a road pool already set.
+    pub fn set_start_states(&mut self, states: Vec<CarState>, share: f64) -> Result<()> {
+        if !(0.0..=1.0).contains(&share) {
+            return Err(Error::InvalidConfig {
+                field: "start share",
+                reason: format!(
+                    "the share of episodes starting at given states must be in [0, 1], got {share}"
+                ),
+            });
+        }
+        if let Some(bad) = states
+            .iter()
+            .find(|c| ![c.x, c.y, c.heading, c.speed].iter().all(|v| v.is_finite()))
+        {
+            return Err(Error::InvalidConfig {
+                field: "start states",
+                reason: format!("a start state is not finite: {bad:?}"),
+            });
+        }
+        let on = share > 0.0 && !states.is_empty();
+        if on && self.road_pool.is_some() {
+            return Err(Error::InvalidConfig {
+                field: "start states",
+                reason: "start states are on this env's road and cannot be combined with a road \
+                         pool"
+                    .into(),
+            });
+        }
+        self.start_pool = on.then_some((states, share));
+        Ok(())
     }
 
     /// The static world (settings, layout, shapes).
@@ -435,6 +484,17 @@ impl Env for DriveEnv {
             }
         }
         let c = self.world.config.clone();
+        let mut start = CarState {
+            x: 0.0,
+            y: c.lane_center(1),
+            heading: 0.0,
+            speed: c.initial_speed,
+        };
+        if let Some((states, share)) = &self.start_pool
+            && self.rng.random::<f64>() < *share
+        {
+            start = states[self.rng.random_range(0..states.len())];
+        }
         let mut noise = |scale: f64| {
             if scale > 0.0 {
                 self.rng.random_range(-scale..=scale)
@@ -442,15 +502,10 @@ impl Env for DriveEnv {
                 0.0
             }
         };
-        let y = noise(c.start_lateral_noise);
-        let heading = noise(c.start_heading_noise);
-        let speed = (c.initial_speed + noise(c.start_speed_noise)).clamp(0.0, c.max_speed);
-        let obs = self.reset_to(CarState {
-            x: 0.0,
-            y: c.lane_center(1) + y,
-            heading,
-            speed,
-        })?;
+        start.y += noise(c.start_lateral_noise);
+        start.heading += noise(c.start_heading_noise);
+        start.speed = (start.speed + noise(c.start_speed_noise)).clamp(0.0, c.max_speed);
+        let obs = self.reset_to(start)?;
         Ok((obs, self.info(Outcome::Driving)))
     }
 
@@ -516,6 +571,54 @@ mod tests {
         env.set_road_pool(0, 0);
         env.reset(Some(2)).unwrap();
         assert_eq!(env.config().track_seed, 501);
+    }
+
+    #[test]
+    fn start_states_take_their_share_and_leave_other_resets_alone() {
+        let config = DriveConfig::default();
+        let mut plain = DriveEnv::new(&config).unwrap();
+        let mut pooled = DriveEnv::new(&config).unwrap();
+        let far = CarState {
+            x: 500.0,
+            y: config.lane_center(2),
+            heading: 0.0,
+            speed: 25.0,
+        };
+        // Share 0: the same episodes as without a pool.
+        pooled.set_start_states(vec![far], 0.0).unwrap();
+        for s in 0..5 {
+            assert_eq!(
+                plain.reset(Some(s)).unwrap().0,
+                pooled.reset(Some(s)).unwrap().0
+            );
+        }
+        pooled.set_start_states(vec![far], 0.5).unwrap();
+        let mut at_far = 0;
+        for s in 0..200 {
+            pooled.reset(Some(s)).unwrap();
+            let car = *pooled.car();
+            if car.x == 500.0 {
+                at_far += 1;
+                assert!((car.y - far.y).abs() <= config.start_lateral_noise + 1e-12);
+            } else {
+                assert_eq!(car.x, 0.0);
+            }
+        }
+        assert!(
+            (70..=130).contains(&at_far),
+            "{at_far} of 200 at the given state"
+        );
+        // The same seed, the same start.
+        pooled.reset(Some(3)).unwrap();
+        let a = *pooled.car();
+        pooled.reset(Some(3)).unwrap();
+        assert_eq!(a, *pooled.car());
+        assert!(pooled.set_start_states(vec![far], 1.5).is_err());
+        let nan = CarState { x: f64::NAN, ..far };
+        assert!(pooled.set_start_states(vec![nan], 0.5).is_err());
+        pooled.set_start_states(vec![], 0.0).unwrap();
+        pooled.set_road_pool(500, 3);
+        assert!(pooled.set_start_states(vec![far], 0.5).is_err());
     }
 
     #[test]

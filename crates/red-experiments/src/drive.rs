@@ -151,6 +151,16 @@ pub struct DriveTrainConfig {
     /// so it applies on any road. Selection checks stay on the demo's
     /// road.
     pub train_roads: u64,
+    /// Share of training episodes that start at a state the demonstration
+    /// passed through (drawn uniformly from its replay on the demo's road,
+    /// with the usual start noise) instead of at the road's start:
+    /// reference-state initialisation (Peng et al. 2018; our addition, the
+    /// paper starts every episode at the start). 0 turns it off. Evaluation
+    /// and selection checks always start at the road's start. Cannot be
+    /// combined with `train_roads`. A training episode's distance in
+    /// metrics.csv is where it ended, so episodes started down the road
+    /// count from there.
+    pub demo_starts: f64,
 }
 
 impl Default for DriveTrainConfig {
@@ -217,6 +227,7 @@ impl Default for DriveTrainConfig {
             select_episodes: 5,
             checkpoint_every: 5_000,
             train_roads: 0,
+            demo_starts: 0.0,
         }
     }
 }
@@ -371,6 +382,24 @@ impl DriveTrainConfig {
             return Err(invalid(
                 "train.reward_update_pairs",
                 "must be at least 1".into(),
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.demo_starts) {
+            return Err(invalid(
+                "train.demo_starts",
+                format!(
+                    "must lie in [0, 1] (the share of training episodes started at a \
+                     demonstration state), got {}",
+                    self.demo_starts
+                ),
+            ));
+        }
+        if self.demo_starts > 0.0 && self.train_roads > 0 {
+            return Err(invalid(
+                "train.demo_starts",
+                "cannot be combined with train_roads: the demonstration's states are on its \
+                 own road; set one of them to 0"
+                    .into(),
             ));
         }
         if self.select_every > 0 && self.select_episodes == 0 {
@@ -1055,6 +1084,7 @@ enum Stop {
 /// Trains one SVG method from `st` until its budget, checkpointing.
 fn train_method(
     run: &DriveRunConfig,
+    starts: &[CarState],
     st: &mut MethodState,
     save: &mut dyn FnMut(&MethodState) -> Result<()>,
     stop: &AtomicBool,
@@ -1064,6 +1094,9 @@ fn train_method(
     let mut env = make_env(&run.drive)?;
     env.inner_mut()
         .set_road_pool(TRAIN_FIRST_TRACK_SEED, cfg.train_roads);
+    env.inner_mut()
+        .set_start_states(starts.to_vec(), cfg.demo_starts)
+        .with_context(|| "train.demo_starts")?;
     progress.start(
         &format!("{}/{}", st.method, st.svg.name()),
         cfg.steps,
@@ -1189,6 +1222,27 @@ fn start_method(
         curve: Vec::new(),
         checks: Vec::new(),
     })
+}
+
+/// The car's states the demonstration passed through (one per action, on
+/// the run's road), when `train.demo_starts` asks for them.
+fn demo_states(run: &DriveRunConfig, demos: &Demos) -> Result<Vec<CarState>> {
+    if run.train.demo_starts <= 0.0 {
+        return Ok(Vec::new());
+    }
+    let mut states = Vec::new();
+    for (i, traj) in demos.trajectories.iter().enumerate() {
+        let (poses, _) = red_drive::render::replay(&run.drive, traj).map_err(|e| Error::Input {
+            path: run.demo.clone().into(),
+            reason: format!(
+                "trajectory {i} does not replay on the run's road, so train.demo_starts has no \
+                 states to start from ({e}); train on the demonstration's own road or set \
+                 demo_starts to 0"
+            ),
+        })?;
+        states.extend(poses.into_iter().take(traj.actions.len()));
+    }
+    Ok(states)
 }
 
 /// Evaluates a trained method.
@@ -1323,6 +1377,7 @@ fn drive_run(
     run_dir.write_json("config.json", &run)?;
     let ck_path = run_dir.file("checkpoint.json");
     let (es, ea) = demos.pairs();
+    let starts = demo_states(&run, demos)?;
     let base_elapsed = ck.elapsed_s;
     while ck.done.len() < run.methods.len() {
         let method = run.methods[ck.done.len()].clone();
@@ -1358,7 +1413,7 @@ fn drive_run(
                     run_dir.save_checkpoint(CHECKPOINT_KIND, &c.config, &c)?;
                     Ok(())
                 };
-                train_method(&run, &mut st, &mut save, stop, progress)?
+                train_method(&run, &starts, &mut st, &mut save, stop, progress)?
             };
             if let Stop::Stopped = stopped {
                 return Ok(DriveOutcome::Stopped {
