@@ -16,7 +16,7 @@ use indicatif::MultiProgress;
 use red_experiments::Progress;
 use red_experiments::mujoco::check::{EnvCheck, check_env};
 use red_experiments::mujoco::run::{self, Outcome, PolicyEval, RunConfig};
-use red_experiments::mujoco::slurm::{self, CellState, SlurmConfig};
+use red_experiments::mujoco::slurm::{self, SlurmConfig};
 use red_experiments::mujoco::table::{self, GridProgress, TableConfig};
 use red_experiments::mujoco::{Method, default_demo, default_run_name, short_name};
 use red_experiments::run_dir;
@@ -276,34 +276,7 @@ impl SlurmArgs {
     /// was done.
     fn submit(&self, cfg: &TableConfig) -> anyhow::Result<()> {
         let sub = slurm::submit(cfg, &self.config()?, self.dry_run)?;
-        for c in &sub.no_demo {
-            eprintln!(
-                "{}: no demonstrations at {}; left out (run `red-cli mujoco expert` first)",
-                c.dir.display(),
-                default_demo(cfg.experts_dir(), c.env).display()
-            );
-        }
-        let Some(script) = &sub.script else {
-            println!("nothing to submit: no cell is missing");
-            return Ok(());
-        };
-        match &sub.job_id {
-            Some(id) => println!(
-                "submitted job {id}: {} cell(s), batch script {}",
-                sub.cells.len(),
-                script.display()
-            ),
-            None => println!(
-                "batch script for {} cell(s) written (not submitted): {}",
-                sub.cells.len(),
-                script.display()
-            ),
-        }
-        println!(
-            "logs in {}; when the job has left the queue, run the same command with --report-only \
-             instead of --slurm (add --resubmit-missing to submit what is missing again)",
-            slurm::slurm_dir(cfg).display()
-        );
+        print!("{}", sub.summary(cfg));
         Ok(())
     }
 }
@@ -487,14 +460,7 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
         cfg.root().display()
     );
     if args.report_only {
-        let missing: Vec<_> = slurm::grid_status(&cfg)
-            .into_iter()
-            .filter(|c| c.state != CellState::Finished)
-            .collect();
-        println!("{} of {} cells missing", missing.len(), cfg.cells().len());
-        for c in &missing {
-            println!("  {}", c.line());
-        }
+        print!("{}", slurm::missing_report(&cfg));
         if args.slurm.resubmit_missing {
             args.slurm.submit(&cfg)?;
         }

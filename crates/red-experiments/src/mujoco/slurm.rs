@@ -442,6 +442,61 @@ pub struct Submission {
     pub job_id: Option<String>,
 }
 
+impl Submission {
+    /// What was done, for the user: cells left out, the job id or the
+    /// script not submitted, where the logs go and how to go on.
+    pub fn summary(&self, cfg: &TableConfig) -> String {
+        let mut s = String::new();
+        for c in &self.no_demo {
+            let _ = writeln!(
+                s,
+                "{}: no demonstrations at {}; left out (run `red-cli mujoco expert` first)",
+                c.dir.display(),
+                default_demo(cfg.experts_dir(), c.env).display()
+            );
+        }
+        let Some(script) = &self.script else {
+            s.push_str("nothing to submit: no cell is missing\n");
+            return s;
+        };
+        let _ = match &self.job_id {
+            Some(id) => writeln!(
+                s,
+                "submitted job {id}: {} cell(s), batch script {}",
+                self.cells.len(),
+                script.display()
+            ),
+            None => writeln!(
+                s,
+                "batch script for {} cell(s) written (not submitted): {}",
+                self.cells.len(),
+                script.display()
+            ),
+        };
+        let _ = writeln!(
+            s,
+            "logs in {}; when the job has left the queue, run the same command with --report-only \
+             instead of --slurm (add --resubmit-missing to submit what is missing again)",
+            slurm_dir(cfg).display()
+        );
+        s
+    }
+}
+
+/// The cells of the grid that have not finished, one line each
+/// ([`CellStatus::line`]), under a count: `2 of 4 cells missing`.
+pub fn missing_report(cfg: &TableConfig) -> String {
+    let missing: Vec<_> = grid_status(cfg)
+        .into_iter()
+        .filter(|c| c.state != CellState::Finished)
+        .collect();
+    let mut s = format!("{} of {} cells missing\n", missing.len(), cfg.cells().len());
+    for c in &missing {
+        let _ = writeln!(s, "  {}", c.line());
+    }
+    s
+}
+
 /// Writes the batch script of every cell of the grid that has not finished
 /// (not started, or unfinished: those resume) into
 /// `<grid>/slurm/submit-<k>.sbatch` (the first free `k`) and, unless
@@ -751,12 +806,18 @@ mod tests {
                 .contains("unfinished (metrics up to env step 2048)")
         );
         assert!(st[1].log.is_none());
+        let report = missing_report(&cfg);
+        assert!(report.starts_with("4 of 4 cells missing\n"), "{report}");
+        assert!(report.contains("reacher red s0: unfinished"), "{report}");
         // A dry run writes the script for the two cells that can run.
         let sub = submit(&cfg, &SlurmConfig::default(), true).unwrap();
         assert_eq!(sub.cells.len(), 2);
         assert_eq!(sub.no_demo.len(), 2);
         assert!(sub.job_id.is_none());
-        let text = std::fs::read_to_string(sub.script.unwrap()).unwrap();
+        let text = std::fs::read_to_string(sub.script.as_ref().unwrap()).unwrap();
         assert!(text.contains("#SBATCH --array=0-1\n"), "{text}");
+        let summary = sub.summary(&cfg);
+        assert!(summary.contains("batch script for 2 cell(s) written (not submitted)"));
+        assert!(summary.contains("expert-hopper"), "{summary}");
     }
 }
