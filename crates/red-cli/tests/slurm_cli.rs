@@ -197,7 +197,7 @@ fn grid_through_slurm_equals_local_and_survives_scancel() {
     let s = cli(&with(&["--name", "viaslurm", "--report-only"]), out);
     assert!(s.contains("0 of 4 cells missing"), "{s}");
     eprintln!(
-        "2x2 grid (3072 steps per TRPO run): locally (--jobs 2) {local_s:.1} s, through SLURM (submit to report) {slurm_s:.1} s"
+        "2x2 grid (3072 steps per TRPO run): locally (--jobs 2) {local_s:.1} s, through SLURM (submit until the job left the queue) {slurm_s:.1} s"
     );
     assert_same_grid(
         &out.join("local"),
