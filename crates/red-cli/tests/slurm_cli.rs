@@ -273,3 +273,81 @@ fn grid_through_slurm_equals_local_and_survives_scancel() {
         &["hopper-red-s0"],
     );
 }
+
+/// `--dry-run` writes the script with the flags' `#SBATCH` lines and
+/// submits nothing (no SLURM needed); bad flags are refused by name.
+#[test]
+fn dry_run_writes_the_script_and_bad_flags_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path();
+    cli(
+        &[
+            "expert",
+            "--env",
+            "reacher",
+            "--steps",
+            "1024",
+            "--eval-episodes",
+            "2",
+        ],
+        out,
+    );
+    let s = cli(
+        &[
+            "table",
+            "--envs",
+            "reacher",
+            "--methods",
+            "red,gail,bc",
+            "--seeds",
+            "0,1",
+            "--slurm",
+            "--dry-run",
+            "--partition",
+            "cpu",
+            "--time",
+            "1-00:00:00",
+            "--mem",
+            "2G",
+            "--max-running",
+            "3",
+            "--sbatch-arg=--qos=long",
+        ],
+        out,
+    );
+    assert!(
+        s.contains("batch script for 6 cell(s) written (not submitted)"),
+        "{s}"
+    );
+    let script = std::fs::read_to_string(out.join("mujoco-table/slurm/submit-1.sbatch")).unwrap();
+    for line in [
+        "#SBATCH --array=0-5%3\n",
+        "#SBATCH --partition=cpu\n",
+        "#SBATCH --time=1-00:00:00\n",
+        "#SBATCH --mem=2G\n",
+        "#SBATCH --qos=long\n",
+        "--method gail --seed 1 ",
+    ] {
+        assert!(script.contains(line), "{line} not in\n{script}");
+    }
+    assert!(
+        !out.join("mujoco-table/runs")
+            .join("reacher-red-s0")
+            .exists()
+    );
+    for (flags, named) in [
+        (&["--slurm", "--time", "2 hours"][..], "--time"),
+        (&["--slurm", "--cpus-per-task", "0"][..], "--cpus-per-task"),
+        (&["--dry-run"][..], "--dry-run"),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_red-cli"))
+            .args(["mujoco", "table", "--envs", "reacher"])
+            .args(flags)
+            .arg("--out-dir")
+            .arg(out)
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && e.contains(named), "{flags:?}: {e}");
+    }
+}
