@@ -351,3 +351,86 @@ fn dry_run_writes_the_script_and_bad_flags_are_named() {
         assert!(!o.status.success() && e.contains(named), "{flags:?}: {e}");
     }
 }
+
+/// SIGTERM (SLURM's preemption and time-limit signal) stops a local grid
+/// as Ctrl-C does: the running cell saves its checkpoint mid-run (with
+/// `--checkpoint-every 1000` only the handler can write one), the command
+/// exits with success and says how to continue.
+#[test]
+fn local_table_saves_on_sigterm() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path();
+    cli(
+        &[
+            "expert",
+            "--env",
+            "hopper",
+            "--steps",
+            "1024",
+            "--eval-episodes",
+            "2",
+        ],
+        out,
+    );
+    let child = Command::new(env!("CARGO_BIN_EXE_red-cli"))
+        .args([
+            "mujoco",
+            "table",
+            "--envs",
+            "hopper",
+            "--methods",
+            "red",
+            "--steps",
+            "102400",
+            "--checkpoint-every",
+            "1000",
+            "--eval-episodes",
+            "2",
+            "--out-dir",
+        ])
+        .arg(out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let cell = out.join("mujoco-table/runs/hopper-red-s0");
+    let t = Instant::now();
+    while std::fs::read_to_string(cell.join("metrics.csv")).map_or(0, |m| m.lines().count()) < 3 {
+        assert!(
+            t.elapsed() < Duration::from_secs(300),
+            "the cell did not start"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let k = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(k.success());
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("stopped at env step"), "{err}");
+    assert!(err.contains("interrupted"), "{err}");
+    assert!(!cell.join("eval.json").exists());
+    let done = metrics(&cell).unwrap().len() - 1;
+    assert!((2..100).contains(&done), "stopped after {done} iterations");
+    // The checkpoint is at the last iteration of metrics.csv: a resume
+    // keeps those rows as they are, wall times included (a resume from an
+    // earlier checkpoint would drop and redo them).
+    let before = std::fs::read_to_string(cell.join("metrics.csv")).unwrap();
+    let s = cli(
+        &[
+            "train",
+            "--resume",
+            cell.to_str().unwrap(),
+            "--steps",
+            &((done as u64 + 1) * 1024).to_string(),
+        ],
+        out,
+    );
+    assert!(s.contains("final policy"), "{s}");
+    let after = std::fs::read_to_string(cell.join("metrics.csv")).unwrap();
+    assert!(after.starts_with(&before), "{before}\n---\n{after}");
+    assert_eq!(after.lines().count(), before.lines().count() + 1);
+}
