@@ -235,6 +235,24 @@ fn grid_through_slurm_equals_local_and_survives_scancel() {
     let s = cli(&with(&["--name", "long", "--slurm"]), out);
     let id = job_id(&s);
     cluster.jobs.push(id.clone());
+    // A second submission while the job is queued is refused.
+    let o = Command::new(env!("CARGO_BIN_EXE_red-cli"))
+        .arg("mujoco")
+        .args(with(&[
+            "--name",
+            "long",
+            "--report-only",
+            "--resubmit-missing",
+        ]))
+        .arg("--out-dir")
+        .arg(out)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("still in the queue"),
+        "{e}"
+    );
     let cell = out.join("long/runs/hopper-red-s0");
     let t = Instant::now();
     // Two iterations done (header + 2 rows), then cancel.

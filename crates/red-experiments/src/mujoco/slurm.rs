@@ -56,6 +56,9 @@ pub struct SlurmConfig {
     pub red_cli: PathBuf,
     /// The `sbatch` program. Default `sbatch`.
     pub sbatch: PathBuf,
+    /// The `squeue` program, asked before a submission whether a job of the
+    /// grid is still queued. Default `squeue`.
+    pub squeue: PathBuf,
 }
 
 impl Default for SlurmConfig {
@@ -70,6 +73,7 @@ impl Default for SlurmConfig {
             extra: Vec::new(),
             red_cli: PathBuf::from("red-cli"),
             sbatch: PathBuf::from("sbatch"),
+            squeue: PathBuf::from("squeue"),
         }
     }
 }
@@ -500,17 +504,34 @@ pub fn missing_report(cfg: &TableConfig) -> String {
 /// Writes the batch script of every cell of the grid that has not finished
 /// (not started, or unfinished: those resume) into
 /// `<grid>/slurm/submit-<k>.sbatch` (the first free `k`) and, unless
-/// `dry_run`, submits it with `sbatch --parsable`. Cells whose task has no
+/// `dry_run`, submits it with `sbatch --parsable`. A grid with a job still
+/// in the queue (`squeue`, by the job name `red-<name>`) is refused: its
+/// unfinished cells may be running, and two tasks must not share a cell. Cells whose task has no
 /// demonstrations are left out (in [`Submission::no_demo`]). Run it again
 /// after the job has left the queue to resubmit what is still missing.
 ///
 /// # Errors
 /// As [`batch_script`]; [`Error::Io`] if the script cannot be written;
 /// [`Error::Input`] (naming the script) if `sbatch` cannot be started,
-/// fails, or prints no job id.
+/// fails, or prints no job id, or (naming the grid) if a job of the grid
+/// is still queued.
 pub fn submit(cfg: &TableConfig, slurm: &SlurmConfig, dry_run: bool) -> Result<Submission> {
     cfg.validate()?;
     slurm.validate()?;
+    if !dry_run {
+        let queued = queued_jobs(slurm, cfg);
+        if !queued.is_empty() {
+            return Err(Error::Input {
+                path: cfg.root(),
+                reason: format!(
+                    "job(s) {} of this grid (red-{}) are still in the queue; wait until they \
+                     leave it (squeue) or scancel them, then submit again",
+                    queued.join(", "),
+                    cfg.name
+                ),
+            });
+        }
+    }
     let mut cells = Vec::new();
     let mut no_demo = Vec::new();
     for st in grid_status(cfg) {
@@ -550,6 +571,25 @@ pub fn submit(cfg: &TableConfig, slurm: &SlurmConfig, dry_run: bool) -> Result<S
         no_demo,
         job_id,
     })
+}
+
+/// The ids of the queued jobs named `red-<name>` (none if `squeue` cannot
+/// be asked).
+fn queued_jobs(slurm: &SlurmConfig, cfg: &TableConfig) -> Vec<String> {
+    let Ok(out) = Command::new(&slurm.squeue)
+        .args(["-h", "-o", "%F", "-n"])
+        .arg(format!("red-{}", cfg.name))
+        .output()
+    else {
+        return Vec::new();
+    };
+    let mut ids: Vec<String> = String::from_utf8_lossy(&out.stdout)
+        .split_whitespace()
+        .map(str::to_string)
+        .collect();
+    ids.sort();
+    ids.dedup();
+    ids
 }
 
 fn run_sbatch(sbatch: &Path, script: &Path) -> Result<String> {
