@@ -6,6 +6,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 bash scripts/setup-mujoco.sh
+# crates/red-cli/tests/slurm_cli.rs starts a one-node SLURM cluster itself
+# (scripts/slurm-local.sh: slurm-wlm and munge from Debian, needs root) and
+# stops it at the end unless it was already running.
 cargo test --workspace --all-targets --no-fail-fast
 # Doc tests (cargo test --all-targets leaves them out).
 cargo test --workspace --doc

@@ -16,6 +16,7 @@ use indicatif::MultiProgress;
 use red_experiments::Progress;
 use red_experiments::mujoco::check::{EnvCheck, check_env};
 use red_experiments::mujoco::run::{self, Outcome, PolicyEval, RunConfig};
+use red_experiments::mujoco::slurm::{self, SlurmConfig};
 use red_experiments::mujoco::table::{self, GridProgress, TableConfig};
 use red_experiments::mujoco::{Method, default_demo, default_run_name, short_name};
 use red_experiments::run_dir;
@@ -199,9 +200,85 @@ struct TableArgs {
     /// TRPO iterations between checkpoints.
     #[arg(long, default_value_t = 50)]
     checkpoint_every: u64,
-    /// Only build the table and plots from the runs already finished.
+    /// Only build the table and plots from the runs already finished, and
+    /// list the cells that are missing or failed.
     #[arg(long)]
     report_only: bool,
+    #[command(flatten)]
+    slurm: SlurmArgs,
+}
+
+/// `red-cli mujoco table` on a SLURM cluster (docs/slurm.md).
+#[derive(Debug, Args)]
+struct SlurmArgs {
+    /// Submit the grid's unfinished cells as a SLURM job array (one task per
+    /// cell, each `red-cli mujoco train` into the grid's folder, resumed from
+    /// its checkpoint when requeued) instead of running them here.
+    #[arg(long, conflicts_with = "report_only")]
+    slurm: bool,
+    /// With --report-only: submit the missing and failed cells again (after
+    /// the earlier job has left the queue).
+    #[arg(long, requires = "report_only")]
+    resubmit_missing: bool,
+    /// Only write the batch script (into `<grid>/slurm/`), do not submit it.
+    #[arg(long)]
+    dry_run: bool,
+    /// SLURM partition.
+    #[arg(long)]
+    partition: Option<String>,
+    /// Time limit of each task (`HH:MM:SS`, `D-HH:MM`, ...).
+    #[arg(long)]
+    time: Option<String>,
+    /// CPUs of each task.
+    #[arg(long, default_value_t = 1)]
+    cpus_per_task: usize,
+    /// Memory of each task (`4G`, ...).
+    #[arg(long)]
+    mem: Option<String>,
+    /// SLURM account.
+    #[arg(long)]
+    account: Option<String>,
+    /// At most this many tasks at once.
+    #[arg(long)]
+    max_running: Option<usize>,
+    /// A further sbatch option for the script (`--sbatch-arg=--qos=long`);
+    /// repeat for several.
+    #[arg(long, value_name = "OPTION", allow_hyphen_values = true)]
+    sbatch_arg: Vec<String>,
+    /// The red-cli the tasks run, a path the compute nodes reach (default:
+    /// this program).
+    #[arg(long, value_name = "PATH")]
+    red_cli: Option<PathBuf>,
+}
+
+impl SlurmArgs {
+    fn config(&self) -> anyhow::Result<SlurmConfig> {
+        let red_cli = match &self.red_cli {
+            Some(p) => p.clone(),
+            None => std::env::current_exe().context("finding this red-cli for the batch script")?,
+        };
+        let cfg = SlurmConfig {
+            partition: self.partition.clone(),
+            time: self.time.clone(),
+            cpus_per_task: self.cpus_per_task,
+            mem: self.mem.clone(),
+            account: self.account.clone(),
+            max_running: self.max_running,
+            extra: self.sbatch_arg.clone(),
+            red_cli,
+            ..SlurmConfig::default()
+        };
+        cfg.validate().map_err(crate::flag_error)?;
+        Ok(cfg)
+    }
+
+    /// Writes (and unless --dry-run submits) the batch script; prints what
+    /// was done.
+    fn submit(&self, cfg: &TableConfig) -> anyhow::Result<()> {
+        let sub = slurm::submit(cfg, &self.config()?, self.dry_run)?;
+        print!("{}", sub.summary(cfg));
+        Ok(())
+    }
 }
 
 /// Runs `red-cli mujoco ...`.
@@ -352,6 +429,13 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
         cfg.methods = args.methods.clone();
     }
     cfg.validate()?;
+    if args.slurm.slurm {
+        return args.slurm.submit(&cfg);
+    }
+    anyhow::ensure!(
+        !args.slurm.dry_run || args.slurm.resubmit_missing,
+        "--dry-run goes with --slurm or --resubmit-missing"
+    );
     let started = Instant::now();
     if !args.report_only {
         interrupt::install();
@@ -375,6 +459,12 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
         started.elapsed().as_secs_f64(),
         cfg.root().display()
     );
+    if args.report_only {
+        print!("{}", slurm::missing_report(&cfg));
+        if args.slurm.resubmit_missing {
+            args.slurm.submit(&cfg)?;
+        }
+    }
     Ok(())
 }
 

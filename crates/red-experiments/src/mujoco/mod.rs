@@ -33,6 +33,7 @@ use red_mujoco::EnvId;
 
 pub mod check;
 pub mod run;
+pub mod slurm;
 pub mod table;
 
 pub use crate::imitation::Method;

@@ -157,11 +157,46 @@ pub struct GridOutcome {
     pub interrupted: bool,
 }
 
-struct Job {
-    env: EnvId,
-    method: Method,
-    seed: u64,
-    dir: PathBuf,
+/// One cell of the grid: a task, a method, a seed and its run folder.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GridCell {
+    /// The task.
+    pub env: EnvId,
+    /// The method.
+    pub method: Method,
+    /// The seed.
+    pub seed: u64,
+    /// Its run folder ([`TableConfig::cell_dir`]).
+    pub dir: PathBuf,
+}
+
+impl TableConfig {
+    /// Every cell of the grid, task by task, then method, then seed (the
+    /// order of the table and of a SLURM job array).
+    pub fn cells(&self) -> Vec<GridCell> {
+        let mut out = Vec::new();
+        for &env in &self.envs {
+            for &method in &self.methods {
+                for &seed in &self.seeds {
+                    out.push(GridCell {
+                        env,
+                        method,
+                        seed,
+                        dir: self.cell_dir(env, method, seed),
+                    });
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Whether the cell's run in `dir` has finished with the grid's budget (an
+/// `eval.json`, and for TRPO methods a `config.json` budget of at least
+/// `cfg.steps`): the grid keeps it instead of running it again.
+pub fn cell_finished(cfg: &TableConfig, dir: &Path) -> bool {
+    run::read_eval(dir).is_some()
+        && run::read_config(dir).is_ok_and(|c| c.method == Method::Bc || c.steps >= cfg.steps)
 }
 
 /// Runs every cell of the grid whose task has demonstrations, `jobs` at a
@@ -191,16 +226,7 @@ pub fn run_grid(
             ));
             continue;
         }
-        for &method in &cfg.methods {
-            for &seed in &cfg.seeds {
-                jobs.push_back(Job {
-                    env,
-                    method,
-                    seed,
-                    dir: cfg.cell_dir(env, method, seed),
-                });
-            }
-        }
+        jobs.extend(cfg.cells().into_iter().filter(|c| c.env == env));
     }
     let jobs_n = cfg
         .jobs
@@ -243,21 +269,20 @@ pub fn run_grid(
 }
 
 fn run_job(
-    job: &Job,
+    job: &GridCell,
     cfg: &TableConfig,
     stop: &AtomicBool,
     progress: &dyn GridProgress,
 ) -> Result<()> {
-    if let Some(e) = run::read_eval(&job.dir) {
-        let c = run::read_config(&job.dir)?;
-        if c.method == Method::Bc || c.steps >= cfg.steps {
-            progress.note(&format!(
-                "{}: finished earlier (final {:.1})",
-                job.dir.display(),
-                e.final_policy.mean
-            ));
-            return Ok(());
-        }
+    if cell_finished(cfg, &job.dir)
+        && let Some(e) = run::read_eval(&job.dir)
+    {
+        progress.note(&format!(
+            "{}: finished earlier (final {:.1})",
+            job.dir.display(),
+            e.final_policy.mean
+        ));
+        return Ok(());
     }
     let label = format!(
         "{} {} s{}",
