@@ -7,10 +7,14 @@
 //!   another run): the user continues that run (`--resume`) or starts over
 //!   with [`Existing::MoveAside`] (`--force`), which renames the old folder
 //!   to `<name>.old-<k>` first, so files of two runs never mix.
-//! - A lock file (`run.lock`, holding the process id) is held for the life
-//!   of the [`RunDir`]: a second run on the same folder is refused with the
-//!   holder's pid; the lock of a process that is no longer running is taken
-//!   over, with a note ([`RunDir::notes`]).
+//! - A lock file (`run.lock`: the process id, the host's name and, under
+//!   SLURM, the job's array task) is held for the life of the [`RunDir`]: a
+//!   second run on the same folder is refused with the holder's pid and
+//!   host; the lock of a process of this host that is no longer running is
+//!   taken over, with a note ([`RunDir::notes`]), and so is the lock of the
+//!   same SLURM task on another host (a requeued task starts again only
+//!   after its earlier run ended). A lock of another host is otherwise
+//!   refused: its process cannot be checked from here.
 //! - Every file is written atomically (a temporary file beside it, then a
 //!   rename), so a run killed at any moment leaves each file whole: the old
 //!   one or the new one. A write that fails names the file and says what
@@ -296,25 +300,113 @@ fn aside_path(path: &Path) -> PathBuf {
 /// Refuses `dir` if a running process holds its lock.
 fn refuse_if_locked(dir: &Path) -> Result<()> {
     match read_lock(&dir.join(LOCK_FILE)) {
-        Some(pid) if pid_alive(pid) => Err(in_use(dir, pid)),
+        Some(h) if h.may_run() => Err(in_use(dir, &h)),
         _ => Ok(()),
     }
 }
 
-fn in_use(dir: &Path, pid: u32) -> Error {
+fn in_use(dir: &Path, holder: &Holder) -> Error {
+    let lock = dir.join(LOCK_FILE);
+    let reason = match &holder.host {
+        Some(host) if *host != this_host() => format!(
+            "is in use by another run (process {} on host {host}, lock file {}); a process of \
+             another host cannot be checked from here: if no run of this folder is going on \
+             there, delete the lock file, or choose another --name",
+            holder.pid,
+            lock.display()
+        ),
+        _ => format!(
+            "is in use by another run (process {}, lock file {}); wait for it to end or stop \
+             it, or choose another --name",
+            holder.pid,
+            lock.display()
+        ),
+    };
     Error::Input {
         path: dir.to_path_buf(),
-        reason: format!(
-            "is in use by another run (process {pid}, lock file {}); wait for it to end or \
-             stop it, or choose another --name",
-            dir.join(LOCK_FILE).display()
-        ),
+        reason,
     }
 }
 
-/// The pid in a lock file, if it holds one.
-fn read_lock(path: &Path) -> Option<u32> {
-    std::fs::read_to_string(path).ok()?.trim().parse().ok()
+/// Who holds a lock: the first line of the file is the pid (the only line
+/// in locks written before the host was recorded), then `host=` and, under
+/// SLURM, `slurm=` lines.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Holder {
+    pid: u32,
+    host: Option<String>,
+    slurm: Option<String>,
+}
+
+impl Holder {
+    /// This process.
+    fn me() -> Self {
+        Self {
+            pid: std::process::id(),
+            host: Some(this_host()),
+            slurm: slurm_task(),
+        }
+    }
+
+    fn contents(&self) -> String {
+        let mut s = format!("{}\n", self.pid);
+        if let Some(h) = &self.host {
+            s.push_str(&format!("host={h}\n"));
+        }
+        if let Some(t) = &self.slurm {
+            s.push_str(&format!("slurm={t}\n"));
+        }
+        s
+    }
+
+    fn parse(text: &str) -> Option<Self> {
+        let mut lines = text.lines();
+        let pid = lines.next()?.trim().parse().ok()?;
+        let (mut host, mut slurm) = (None, None);
+        for line in lines {
+            if let Some(h) = line.strip_prefix("host=") {
+                host = Some(h.trim().to_string());
+            } else if let Some(t) = line.strip_prefix("slurm=") {
+                slurm = Some(t.trim().to_string());
+            }
+        }
+        Some(Self { pid, host, slurm })
+    }
+
+    /// Whether the holder may still be running: on this host (or in a lock
+    /// that names no host) its pid is checked; on another host it is taken
+    /// as running unless it is this same SLURM task (requeued).
+    fn may_run(&self) -> bool {
+        match &self.host {
+            Some(h) if *h != this_host() => !(self.slurm.is_some() && self.slurm == slurm_task()),
+            _ => pid_alive(self.pid),
+        }
+    }
+}
+
+/// The host's name (Linux: the kernel's; else `HOSTNAME`, else `unknown`).
+fn this_host() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .ok()
+        .or_else(|| std::env::var("HOSTNAME").ok())
+        .map(|h| h.trim().to_string())
+        .filter(|h| !h.is_empty())
+        .unwrap_or_else(|| "unknown".into())
+}
+
+/// This process's SLURM task: `<array job>_<array task>` in a job array,
+/// else `<job>`; `None` outside SLURM.
+fn slurm_task() -> Option<String> {
+    let var = |k: &str| std::env::var(k).ok().filter(|v| !v.is_empty());
+    match (var("SLURM_ARRAY_JOB_ID"), var("SLURM_ARRAY_TASK_ID")) {
+        (Some(j), Some(t)) => Some(format!("{j}_{t}")),
+        _ => var("SLURM_JOB_ID"),
+    }
+}
+
+/// The holder of a lock file, if it names one.
+fn read_lock(path: &Path) -> Option<Holder> {
+    Holder::parse(&std::fs::read_to_string(path).ok()?)
 }
 
 /// Whether process `pid` is running (on Linux: `/proc/<pid>` exists and is
@@ -351,14 +443,14 @@ impl RunLock {
     /// says so).
     fn acquire(dir: &Path) -> Result<(Self, Option<String>)> {
         let path = dir.join(LOCK_FILE);
-        let pid = std::process::id();
-        let tmp = dir.join(format!(".{LOCK_FILE}.{pid}"));
+        let me = Holder::me();
+        let tmp = dir.join(format!(".{LOCK_FILE}.{}", me.pid));
         let io = |p: &Path| {
             let p = p.to_path_buf();
             move |source| Error::Io { path: p, source }
         };
         std::fs::File::create(&tmp)
-            .and_then(|mut f| writeln!(f, "{pid}"))
+            .and_then(|mut f| f.write_all(me.contents().as_bytes()))
             .map_err(io(&tmp))?;
         let mut note = None;
         let result = loop {
@@ -367,12 +459,19 @@ impl RunLock {
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && note.is_none() => {
                     let holder = read_lock(&path);
                     match holder {
-                        Some(h) if pid_alive(h) => break Err(in_use(dir, h)),
+                        Some(h) if h.may_run() => break Err(in_use(dir, &h)),
                         Some(h) => {
+                            let why = match (&h.host, &h.slurm) {
+                                (Some(host), Some(task)) if *host != this_host() => format!(
+                                    "on host {host}, the same SLURM task {task} as this one \
+                                     (requeued)"
+                                ),
+                                _ => "which is no longer running".into(),
+                            };
                             note = Some(format!(
-                                "took over the lock {} of process {h}, which is no longer \
-                                 running",
-                                path.display()
+                                "took over the lock {} of process {}, {why}",
+                                path.display(),
+                                h.pid
                             ));
                         }
                         None => {
@@ -387,7 +486,12 @@ impl RunLock {
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
                     // Another process took it between our removal and
                     // our link.
-                    break Err(in_use(dir, read_lock(&path).unwrap_or(0)));
+                    let holder = read_lock(&path).unwrap_or(Holder {
+                        pid: 0,
+                        host: None,
+                        slurm: None,
+                    });
+                    break Err(in_use(dir, &holder));
                 }
                 Err(source) => {
                     break Err(Error::Io {
@@ -405,7 +509,9 @@ impl RunLock {
 impl Drop for RunLock {
     fn drop(&mut self) {
         // Only our own lock: never one another process took over.
-        if read_lock(&self.path) == Some(std::process::id()) {
+        if read_lock(&self.path)
+            .is_some_and(|h| h.pid == std::process::id() && h.host == Some(this_host()))
+        {
             let _ = std::fs::remove_file(&self.path);
         }
     }
@@ -530,5 +636,47 @@ mod tests {
         std::fs::write(path.join(LOCK_FILE), "4194305\n").unwrap();
         let run = RunDir::open(&path).unwrap();
         assert!(run.notes()[0].contains("4194305"), "{:?}", run.notes());
+        let lock = std::fs::read_to_string(path.join(LOCK_FILE)).unwrap();
+        assert_eq!(Holder::parse(&lock), Some(Holder::me()), "{lock}");
+    }
+
+    #[test]
+    fn a_lock_of_another_host_is_refused_unless_it_is_this_slurm_task() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = RunDir::create(dir.path(), "r").unwrap();
+        run.write("config.json", b"{}").unwrap();
+        let path = run.path().to_path_buf();
+        drop(run);
+        // Another host's lock (a pid that would be dead here): refused.
+        std::fs::write(path.join(LOCK_FILE), "4194305\nhost=elsewhere-node\n").unwrap();
+        let e = RunDir::open(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("host elsewhere-node") && e.contains("delete"),
+            "{e}"
+        );
+        // Another SLURM task there: refused too.
+        std::fs::write(
+            path.join(LOCK_FILE),
+            "4194305\nhost=elsewhere-node\nslurm=not-this-task\n",
+        )
+        .unwrap();
+        assert!(RunDir::open(&path).is_err());
+        // The same task (this process's, if under SLURM) requeued: taken over.
+        if let Some(task) = slurm_task() {
+            std::fs::write(
+                path.join(LOCK_FILE),
+                format!("4194305\nhost=elsewhere-node\nslurm={task}\n"),
+            )
+            .unwrap();
+            let run = RunDir::open(&path).unwrap();
+            assert!(run.notes()[0].contains("requeued"), "{:?}", run.notes());
+        }
+        let h = Holder::parse("12\nhost=a\nslurm=7_3\n").unwrap();
+        assert_eq!(
+            (h.pid, h.host.as_deref(), h.slurm.as_deref()),
+            (12, Some("a"), Some("7_3"))
+        );
+        assert_eq!(Holder::parse(&h.contents()), Some(h));
+        assert_eq!(Holder::parse("garbage"), None);
     }
 }
