@@ -375,10 +375,15 @@ impl Holder {
 
     /// Whether the holder may still be running: on this host (or in a lock
     /// that names no host) its pid is checked; on another host it is taken
-    /// as running unless it is this same SLURM task (requeued).
+    /// as running unless it is this same SLURM task (requeued) or a SLURM
+    /// task that `squeue` no longer lists.
     fn may_run(&self) -> bool {
         match &self.host {
-            Some(h) if *h != this_host() => !(self.slurm.is_some() && self.slurm == slurm_task()),
+            Some(h) if *h != this_host() => match &self.slurm {
+                Some(task) if Some(task) == slurm_task().as_ref() => false,
+                Some(task) => slurm_task_queued(task),
+                None => true,
+            },
             _ => pid_alive(self.pid),
         }
     }
@@ -401,6 +406,19 @@ fn slurm_task() -> Option<String> {
     match (var("SLURM_ARRAY_JOB_ID"), var("SLURM_ARRAY_TASK_ID")) {
         (Some(j), Some(t)) => Some(format!("{j}_{t}")),
         _ => var("SLURM_JOB_ID"),
+    }
+}
+
+/// Whether SLURM still lists `task` (`squeue -h -j <task>` prints a line);
+/// `true` when `squeue` cannot say (not installed, an error).
+fn slurm_task_queued(task: &str) -> bool {
+    match std::process::Command::new("squeue")
+        .args(["-h", "-j", task])
+        .stderr(std::process::Stdio::null())
+        .output()
+    {
+        Ok(out) if out.status.success() => out.stdout.iter().any(|b| !b.is_ascii_whitespace()),
+        _ => true,
     }
 }
 
@@ -463,8 +481,8 @@ impl RunLock {
                         Some(h) => {
                             let why = match (&h.host, &h.slurm) {
                                 (Some(host), Some(task)) if *host != this_host() => format!(
-                                    "on host {host}, the same SLURM task {task} as this one \
-                                     (requeued)"
+                                    "on host {host}, SLURM task {task}, which is this task \
+                                     requeued or no longer in SLURM's queue"
                                 ),
                                 _ => "which is no longer running".into(),
                             };
