@@ -546,7 +546,18 @@ pub fn read_eval(dir: &Path) -> Option<EvalFile> {
 const METRICS_HEADER: &str = "iteration,env_steps,episodes,mean_true_return,true_return_window,mean_imitation_reward,mean_true_reward,policy_loss,value_loss,kl,entropy,backtracks,step_accepted,mujoco_warnings,wall_s";
 
 fn fmt_opt(v: Option<f64>) -> String {
-    v.map_or(String::new(), |x| format!("{x}"))
+    v.map_or(String::new(), num)
+}
+
+/// `x` as the shortest text that reads back to it: plain decimals as
+/// before, but with an exponent below 1e-5 and from 1e16 in size (a mean
+/// reward of 1e-300 would otherwise take 300 digits).
+fn num(x: f64) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-5..1e16).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
 }
 
 fn metrics_row(m: &IterationMetrics, window: Option<f64>, warnings: u64, wall_s: f64) -> String {
@@ -558,11 +569,11 @@ fn metrics_row(m: &IterationMetrics, window: Option<f64>, warnings: u64, wall_s:
         fmt_opt(m.mean_true_return),
         fmt_opt(window),
         fmt_opt(m.mean_imitation_reward),
-        m.mean_true_reward,
-        m.policy_loss,
-        m.value_loss,
-        m.kl,
-        m.entropy,
+        num(m.mean_true_reward),
+        num(m.policy_loss),
+        num(m.value_loss),
+        num(m.kl),
+        num(m.entropy),
         m.backtracks,
         m.step_accepted,
         warnings,
@@ -1307,6 +1318,21 @@ pub fn evaluate_file(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn metrics_numbers_are_short_and_read_back() {
+        for (x, text) in [
+            (0.63, "0.63"),
+            (3.0, "3"),
+            (0.0, "0"),
+            (1e-300, "1e-300"),
+            (-2.5e-7, "-2.5e-7"),
+            (1e20, "1e20"),
+        ] {
+            assert_eq!(num(x), text);
+            assert_eq!(num(x).parse::<f64>().unwrap(), x);
+        }
+    }
 
     /// Counts what a run tells its observer.
     #[derive(Default)]
