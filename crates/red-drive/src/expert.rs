@@ -10,7 +10,7 @@
 //! sum of squared lane changes, so it never needs a two-lane change.
 
 use rand::Rng;
-use red_core::{DemoSource, Demos, Env, EpisodeEnd, Seeder, Stream, Trajectory};
+use red_core::{DemoSource, Demos, Env, Seeder, Stream, Trajectory, record_episode};
 
 use crate::config::{ACT_DIM, CONTROL_HZ, DriveConfig, NUM_LANES, OBS_DIM};
 use crate::env::{CarState, INFO_SUCCESS, World, make_env};
@@ -160,38 +160,20 @@ pub struct EpisodeSummary {
 pub fn expert_episode(config: &DriveConfig, seed: u64) -> Result<(Trajectory, EpisodeSummary)> {
     let mut env = make_env(config)?;
     let expert = Expert::new(env.inner().world());
-    let (mut obs, _) = env.reset(Some(seed))?;
-    let mut observations = Vec::new();
-    let mut actions = Vec::new();
-    let mut rewards = Vec::new();
-    loop {
-        let action = expert.act(env.inner().car());
-        let step = env.step(&action)?;
-        observations.push(std::mem::replace(&mut obs, step.observation));
-        actions.push(action.to_vec());
-        rewards.push(step.reward);
-        if step.terminated || step.truncated {
-            let summary = EpisodeSummary {
-                success: step.info.get(INFO_SUCCESS) == Some(1.0),
-                distance: rewards.iter().sum(),
-                steps: actions.len(),
-            };
-            let end = if step.terminated {
-                EpisodeEnd::Terminated
-            } else {
-                EpisodeEnd::Truncated
-            };
-            return Ok((
-                Trajectory {
-                    observations,
-                    actions,
-                    rewards: Some(rewards),
-                    end,
-                },
-                summary,
-            ));
-        }
-    }
+    let (obs, _) = env.reset(Some(seed))?;
+    let (trajectory, run) = record_episode(
+        &mut env,
+        obs,
+        None,
+        |env, _| Ok::<_, crate::Error>(expert.act(env.inner().car()).to_vec()),
+        |_, _| Ok(()),
+    )?;
+    let summary = EpisodeSummary {
+        success: run.last.info.get(INFO_SUCCESS) == Some(1.0),
+        distance: trajectory.rewards.iter().flatten().sum(),
+        steps: trajectory.actions.len(),
+    };
+    Ok((trajectory, summary))
 }
 
 /// `episodes` scripted demonstrations on `config`'s track, with true
