@@ -195,6 +195,55 @@ pub fn expert_demos(config: &DriveConfig, episodes: usize, seed: u64) -> Result<
     Ok(demos)
 }
 
+/// Who drives scripted demonstrations: the smooth [`Expert`] that knows the
+/// whole layout, or the person-like [`crate::HumanDriver`] (key taps
+/// through the recorder's key model, reaction delays, lane wobble, only the
+/// road ahead in view) with its default [`crate::HumanConfig`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ExpertStyle {
+    /// The scripted expert ([`expert_demos`]).
+    #[default]
+    Script,
+    /// The person-like driver ([`crate::human_demos`]).
+    Human,
+}
+
+impl ExpertStyle {
+    /// `episodes` demonstrations on `config`'s road by this driver, from the
+    /// demo stream of `seed`.
+    ///
+    /// # Errors
+    /// [`crate::Error::InvalidConfig`] for an invalid config.
+    pub fn demos(self, config: &DriveConfig, episodes: usize, seed: u64) -> Result<Demos> {
+        match self {
+            ExpertStyle::Script => expert_demos(config, episodes, seed),
+            ExpertStyle::Human => {
+                crate::human_demos(config, &crate::HumanConfig::default(), episodes, seed)
+            }
+        }
+    }
+
+    /// Who drove, for a summary line.
+    pub fn who(self) -> &'static str {
+        match self {
+            ExpertStyle::Script => "scripted expert",
+            ExpertStyle::Human => "person-like (human-style script)",
+        }
+    }
+}
+
+impl std::str::FromStr for ExpertStyle {
+    type Err = String;
+    /// `script` or `human`.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "script" => Ok(ExpertStyle::Script),
+            "human" => Ok(ExpertStyle::Human),
+            other => Err(format!("unknown style `{other}` (script or human)")),
+        }
+    }
+}
+
 /// Runs the expert once on each track seed in `track_seeds` (reset seed
 /// 0) and returns the summaries.
 ///
@@ -254,5 +303,17 @@ mod tests {
             assert!((y - prev).abs() < 0.1, "jump at {x}");
             prev = y;
         }
+    }
+
+    #[test]
+    fn styles_parse_by_name_and_drive_their_own_way() {
+        assert_eq!("script".parse(), Ok(ExpertStyle::Script));
+        assert_eq!("human".parse(), Ok(ExpertStyle::Human));
+        assert!("robot".parse::<ExpertStyle>().is_err());
+        let c = DriveConfig::default();
+        let script = ExpertStyle::Script.demos(&c, 1, 3).unwrap();
+        assert_eq!(script, expert_demos(&c, 1, 3).unwrap());
+        let human = ExpertStyle::Human.demos(&c, 1, 3).unwrap();
+        assert_ne!(human.trajectories, script.trajectories);
     }
 }
