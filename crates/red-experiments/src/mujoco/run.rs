@@ -527,11 +527,7 @@ pub fn read_config(dir: &Path) -> Result<RunConfig> {
         path: p.clone(),
         reason: format!("cannot read it ({e}); is {} a run folder?", dir.display()),
     })?;
-    let cfg: RunConfig =
-        serde_json::from_str(text.trim_start_matches('\u{feff}')).map_err(|e| Error::Input {
-            path: p.clone(),
-            reason: format!("parsing: {e}"),
-        })?;
+    let cfg: RunConfig = crate::run_dir::parse_json(&text, &p)?;
     cfg.validate()
         .with_context(|| format!("checking {}", p.display()))?;
     Ok(cfg)
