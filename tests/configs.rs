@@ -15,7 +15,21 @@ where
     T: Serialize + DeserializeOwned + Default,
     E: std::fmt::Display,
 {
-    let default = serde_json::to_value(T::default()).expect("serialise");
+    check_from(name, &T::default(), validate, bad);
+}
+
+/// As [`check`], from `base` instead of the default (a config whose
+/// default needs a file, or one per task).
+fn check_from<T, E>(
+    name: &str,
+    base: &T,
+    validate: impl Fn(&T) -> Result<(), E>,
+    bad: &[(&str, Value, &str)],
+) where
+    T: Serialize + DeserializeOwned,
+    E: std::fmt::Display,
+{
+    let default = serde_json::to_value(base).expect("serialise");
     let back: T = serde_json::from_value(default.clone()).expect("the default parses");
     if let Err(e) = validate(&back) {
         panic!("{name}: the default does not validate: {e}");
@@ -142,6 +156,18 @@ fn learner_configs() {
         |c| c.validate(),
         &[("/init_log_std", json!(100.0), "init_log_std")],
     );
+    check::<red_rl::sac::SacConfig, _>(
+        "SacConfig",
+        |c| c.validate(),
+        &[
+            ("/gamma", json!(1.0), "gamma"),
+            ("/tau", json!(0.0), "tau"),
+            ("/actor_lr", json!(-3e-4), "actor_lr"),
+            ("/buffer_size", json!(0), "buffer_size"),
+            ("/init_alpha", json!(0.0), "init_alpha"),
+            ("/hidden", json!([0]), "hidden"),
+        ],
+    );
     check::<svg::SvgConfig, _>(
         "SvgConfig",
         |c| c.validate(),
@@ -209,6 +235,16 @@ fn environment_configs() {
             ("/lane_width", json!(0.0), "lane_width"),
             ("/lidar_range", json!(-1.0), "lidar_range"),
             ("/time_limit", json!(0), "time_limit"),
+        ],
+    );
+    check::<red_drive::HumanConfig, _>(
+        "HumanConfig",
+        |c| c.validate(),
+        &[
+            ("/reaction_min", json!(-0.1), "reaction_min"),
+            ("/reaction_max", json!(-1.0), "reaction_max"),
+            ("/view_distance", json!(0.0), "view_distance"),
+            ("/cruise_min_kmh", json!(0.0), "cruise_min_kmh"),
         ],
     );
     use red_mujoco::{AntConfig, HalfCheetahConfig, HopperConfig, ReacherConfig, Walker2dConfig};
@@ -293,4 +329,100 @@ fn experiment_configs() {
         .insert("no_such_setting".into(), json!(1));
     let err = serde_json::from_value::<red_experiments::drive::DriveRunConfig>(v).unwrap_err();
     assert!(err.to_string().contains("no_such_setting"), "{err}");
+}
+
+#[test]
+fn mujoco_experiment_configs() {
+    use red_experiments::imitation::Method;
+    use red_experiments::mujoco::run::RunConfig;
+    use red_mujoco::EnvId;
+    // A run's defaults depend on its task and method, and every method but
+    // `expert` needs a demonstration file: each pair is checked.
+    for env in EnvId::ALL {
+        for method in [Method::Expert].into_iter().chain(Method::TABLE) {
+            let mut base = RunConfig::for_task(env, method);
+            if method.needs_demo() {
+                base.demo = Some("demos.json".into());
+            }
+            let name = format!("RunConfig {} {}", env.name(), method.name());
+            let mut bad = vec![
+                ("/trpo/max_kl", json!(-0.01), "trpo"),
+                ("/rnd/epochs", json!(0), "rnd"),
+                ("/autoencoder/epochs", json!(0), "autoencoder"),
+                ("/gail/epochs", json!(0), "gail"),
+                ("/gmmil/median_sample", json!(0), "gmmil"),
+                ("/bc/batch_size", json!(0), "bc"),
+                ("/sigma1", json!({"fixed": -1.0}), "sigma1"),
+                ("/checkpoint_every", json!(0), "checkpoint_every"),
+                ("/eval_episodes", json!(0), "eval_episodes"),
+                ("/best_window", json!(0), "best_window"),
+                (
+                    if method == Method::Bc {
+                        "/bc_epochs"
+                    } else {
+                        "/steps"
+                    },
+                    json!(0),
+                    if method == Method::Bc {
+                        "bc_epochs"
+                    } else {
+                        "steps"
+                    },
+                ),
+            ];
+            if method.needs_demo() {
+                bad.push(("/demo", Value::Null, "demo"));
+            } else {
+                bad.push(("/demo_trajectories", json!(0), "demo_trajectories"));
+            }
+            check_from(&name, &base, |c: &RunConfig| c.validate(), &bad);
+        }
+    }
+    check::<red_experiments::mujoco::table::TableConfig, _>(
+        "TableConfig",
+        |c| c.validate(),
+        &[
+            ("/methods", json!(["red", "expert"]), "methods"),
+            ("/seeds", json!([]), "seeds"),
+            ("/envs", json!([]), "envs"),
+            ("/steps", json!(0), "steps"),
+            ("/checkpoint_every", json!(0), "checkpoint_every"),
+            ("/eval_episodes", json!(0), "eval_episodes"),
+            ("/jobs", json!(0), "jobs"),
+        ],
+    );
+}
+
+/// The one method vocabulary of the experiments
+/// (`red_experiments::imitation`): each method is written by its name in
+/// configs, read back by it (and from the command line, case-insensitive),
+/// and an unknown name is refused naming it.
+#[test]
+fn imitation_methods() {
+    use red_experiments::imitation::Method;
+    let all: Vec<Method> = [Method::Expert].into_iter().chain(Method::TABLE).collect();
+    assert_eq!(all.len(), 6);
+    for m in all {
+        let v = serde_json::to_value(m).expect("serialise");
+        assert_eq!(v, json!(m.name()), "{m:?}");
+        let back: Method = serde_json::from_value(v).expect("parses");
+        assert_eq!(back, m);
+        assert_eq!(m.name().to_uppercase().parse::<Method>(), Ok(m));
+        assert_eq!(m.needs_demo(), m != Method::Expert);
+        assert_eq!(
+            m.imitates_by_reward(),
+            !matches!(m, Method::Expert | Method::Bc)
+        );
+    }
+    let err = serde_json::from_value::<Method>(json!("dagger")).unwrap_err();
+    assert!(err.to_string().contains("dagger"), "{err}");
+    let err = "dagger".parse::<Method>().unwrap_err();
+    assert!(err.contains("dagger"), "{err}");
+    // A config holding a method refuses an unknown one.
+    let mut table = serde_json::to_value(red_experiments::mujoco::table::TableConfig::default())
+        .expect("serialise");
+    table["methods"] = json!(["red", "dagger"]);
+    let err =
+        serde_json::from_value::<red_experiments::mujoco::table::TableConfig>(table).unwrap_err();
+    assert!(err.to_string().contains("dagger"), "{err}");
 }

@@ -12,9 +12,7 @@ use red_core::Demos;
 use red_drive::record::RecordStatus;
 use red_drive::render::demo_paths;
 use red_drive::scenario::episode_lines;
-use red_drive::{
-    DriveConfig, HumanConfig, Recorder, RenderOptions, expert_demos, render_png, terminal,
-};
+use red_drive::{DriveConfig, ExpertStyle, Recorder, RenderOptions, render_png, terminal};
 
 /// Arguments of `red-cli drive`.
 #[derive(Debug, Args)]
@@ -63,20 +61,11 @@ pub struct ExpertArgs {
     /// or `human`, a script that drives like a person at the keyboard
     /// (key taps through the recorder's key model, reaction delays, lane
     /// wobble, only the 100 m ahead in view; `red_drive::human`).
-    #[arg(long, value_enum, default_value_t = ExpertStyle::Script)]
+    #[arg(long, default_value = "script")]
     pub style: ExpertStyle,
     /// The road.
     #[command(flatten)]
     pub track: TrackArgs,
-}
-
-/// Who drives in `red-cli drive expert`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ExpertStyle {
-    /// The scripted expert ([`red_drive::Expert`]).
-    Script,
-    /// The person-like driver ([`red_drive::HumanDriver`]).
-    Human,
 }
 
 /// Arguments of `red-cli drive record`.
@@ -141,12 +130,7 @@ fn expert(args: ExpertArgs) -> anyhow::Result<()> {
     if args.episodes == 0 {
         bail!("--episodes must be at least 1");
     }
-    let mut demos = match args.style {
-        ExpertStyle::Script => expert_demos(&config, args.episodes, args.seed)?,
-        ExpertStyle::Human => {
-            red_drive::human_demos(&config, &HumanConfig::default(), args.episodes, args.seed)?
-        }
-    };
+    let mut demos = args.style.demos(&config, args.episodes, args.seed)?;
     if let Some(d) = args.sig_digits {
         demos
             .round_to_significant(d)
@@ -155,14 +139,11 @@ fn expert(args: ExpertArgs) -> anyhow::Result<()> {
     demos
         .write(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
-    let who = match args.style {
-        ExpertStyle::Script => "scripted expert",
-        ExpertStyle::Human => "person-like (human-style script)",
-    };
     println!(
-        "{}: {} {who} episode(s) on track seed {}",
+        "{}: {} {} episode(s) on track seed {}",
         args.out.display(),
         demos.trajectories.len(),
+        args.style.who(),
         config.track_seed
     );
     summarise(&demos, &config);

@@ -70,15 +70,9 @@ pub(crate) fn read_json<T: serde::de::DeserializeOwned + Default>(
     path: Option<&std::path::Path>,
     what: &str,
 ) -> anyhow::Result<T> {
-    let Some(text) = read_text(path)? else {
-        return Ok(T::default());
-    };
-    serde_json::from_str(text.trim_start_matches('\u{feff}')).map_err(|e| {
-        anyhow::anyhow!(
-            "parsing {what} {}: {e}",
-            path.unwrap_or("?".as_ref()).display()
-        )
-    })
+    let read =
+        |p| red_experiments::run_dir::read_json(p).map_err(|e| anyhow::anyhow!("{what}: {e}"));
+    Ok(path.map(read).transpose()?.unwrap_or_default())
 }
 
 fn main() -> anyhow::Result<()> {

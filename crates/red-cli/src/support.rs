@@ -2,19 +2,15 @@
 //! demo file with a fitted model.
 
 use std::path::PathBuf;
-use std::time::Instant;
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use clap::{Args, Subcommand, ValueEnum};
-use red_core::{Demos, Seeder, Stream};
-use red_experiments::Progress;
+use red_core::Demos;
+use red_experiments::{Progress, support};
 
 use crate::progress::Bar;
 use red_support::stats::summary_line;
-use red_support::{
-    EstimatorConfig, FitProgress, FittedEstimator, RedRewardConfig, Sigma1, SupportEstimatorConfig,
-    SupportModel,
-};
+use red_support::{FitProgress, FittedEstimator};
 
 /// Arguments of `red-cli support`.
 #[derive(Debug, Args)]
@@ -92,24 +88,21 @@ pub fn run(args: SupportArgs) -> anyhow::Result<()> {
 fn fit(args: FitArgs) -> anyhow::Result<()> {
     let demos =
         Demos::read(&args.demo).with_context(|| format!("reading {}", args.demo.display()))?;
-    let (s, a) = demos.pairs();
-    if s.nrows() == 0 {
-        bail!("{}: no state-action pairs to fit on", args.demo.display());
-    }
+    let pairs = support::demo_pairs(&demos, &args.demo, "fit on")?;
     let json = crate::read_text(args.config.as_deref())?;
     let kind = args
         .estimator
         .to_possible_value()
         .map(|v| v.get_name().to_string());
-    let mut cfg = EstimatorConfig::from_json(kind.as_deref().unwrap_or("rnd"), json.as_deref())?;
-    if let Some(e) = args.epochs {
-        cfg.set_epochs(e).context("--epochs")?;
-    }
-    cfg.validate().context("estimator config")?;
+    let cfg = support::estimator_config(
+        kind.as_deref().unwrap_or("rnd"),
+        json.as_deref(),
+        args.epochs,
+    )?;
     println!(
         "fitting {} on {} pairs ({} state + {} action numbers) from {}, seed {}",
         cfg.kind(),
-        s.nrows(),
+        pairs.0.nrows(),
         demos.obs_dim,
         demos.act_dim,
         args.demo.display(),
@@ -122,11 +115,8 @@ fn fit(args: FitArgs) -> anyhow::Result<()> {
         bar.start_total(p.total as u64);
         bar.advance(p.done as u64, &loss);
     };
-    let mut rng = Seeder::new(args.seed).rng(Stream::Estimator);
-    let start = Instant::now();
-    let model = cfg.fit(s.view(), a.view(), &mut rng, &mut on_progress)?;
+    let (model, secs) = support::fit(&cfg, &pairs, args.seed, &mut on_progress)?;
     bar.finish();
-    let secs = start.elapsed().as_secs_f64();
     model
         .save(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
@@ -139,43 +129,17 @@ fn score(args: ScoreArgs) -> anyhow::Result<()> {
     let model = FittedEstimator::load(&args.model)?;
     let demos =
         Demos::read(&args.demo).with_context(|| format!("reading {}", args.demo.display()))?;
-    if (demos.obs_dim, demos.act_dim) != (model.obs_dim(), model.act_dim()) {
-        bail!(
-            "{} has {} state + {} action numbers, the model was fitted on {} + {}",
-            args.demo.display(),
-            demos.obs_dim,
-            demos.act_dim,
-            model.obs_dim(),
-            model.act_dim()
-        );
-    }
-    let (s, a) = demos.pairs();
-    if s.nrows() == 0 {
-        bail!("{}: no state-action pairs to score", args.demo.display());
-    }
-    let mut scores = model.score(s.view(), a.view())?.to_vec();
-    scores.sort_by(f64::total_cmp);
+    let r = support::score(&model, &demos, &args.demo, args.sigma1)?;
     println!(
         "{} model {} on {} pairs of {}",
         model.kind(),
         args.model.display(),
-        scores.len(),
+        r.scores.len(),
         args.demo.display()
     );
-    println!("{}", summary_line("score L", &scores));
-    let rule = args
-        .sigma1
-        .map_or(RedRewardConfig::default().sigma1, Sigma1::Fixed);
-    let sigma1 = rule.resolve(&scores)?;
-    if !(sigma1.is_finite() && sigma1 > 0.0) {
-        bail!("--sigma1 must be finite and > 0, got {sigma1}");
-    }
-    println!("sigma1 = {sigma1:.6e} ({})", rule.describe());
-    // exp(-sigma1 L) is decreasing in L, so the sorted rewards are the
-    // reversed sorted scores.
-    let rewards: Vec<f64> = scores.iter().rev().map(|l| (-sigma1 * l).exp()).collect();
-    println!("{}", summary_line("reward r", &rewards));
-    let share = rewards.iter().filter(|r| **r >= 0.9).count() as f64 / rewards.len() as f64;
-    println!("share of pairs with reward >= 0.9: {share:.3}");
+    println!("{}", summary_line("score L", &r.scores));
+    println!("sigma1 = {:.6e} ({})", r.sigma1, r.rule);
+    println!("{}", summary_line("reward r", &r.rewards));
+    println!("share of pairs with reward >= 0.9: {:.3}", r.share_high);
     Ok(())
 }

@@ -10,7 +10,7 @@
 //! sum of squared lane changes, so it never needs a two-lane change.
 
 use rand::Rng;
-use red_core::{DemoSource, Demos, Env, EpisodeEnd, Seeder, Stream, Trajectory};
+use red_core::{DemoSource, Demos, Env, Seeder, Stream, Trajectory, record_episode};
 
 use crate::config::{ACT_DIM, CONTROL_HZ, DriveConfig, NUM_LANES, OBS_DIM};
 use crate::env::{CarState, INFO_SUCCESS, World, make_env};
@@ -160,38 +160,20 @@ pub struct EpisodeSummary {
 pub fn expert_episode(config: &DriveConfig, seed: u64) -> Result<(Trajectory, EpisodeSummary)> {
     let mut env = make_env(config)?;
     let expert = Expert::new(env.inner().world());
-    let (mut obs, _) = env.reset(Some(seed))?;
-    let mut observations = Vec::new();
-    let mut actions = Vec::new();
-    let mut rewards = Vec::new();
-    loop {
-        let action = expert.act(env.inner().car());
-        let step = env.step(&action)?;
-        observations.push(std::mem::replace(&mut obs, step.observation));
-        actions.push(action.to_vec());
-        rewards.push(step.reward);
-        if step.terminated || step.truncated {
-            let summary = EpisodeSummary {
-                success: step.info.get(INFO_SUCCESS) == Some(1.0),
-                distance: rewards.iter().sum(),
-                steps: actions.len(),
-            };
-            let end = if step.terminated {
-                EpisodeEnd::Terminated
-            } else {
-                EpisodeEnd::Truncated
-            };
-            return Ok((
-                Trajectory {
-                    observations,
-                    actions,
-                    rewards: Some(rewards),
-                    end,
-                },
-                summary,
-            ));
-        }
-    }
+    let (obs, _) = env.reset(Some(seed))?;
+    let (trajectory, run) = record_episode(
+        &mut env,
+        obs,
+        None,
+        |env, _| Ok::<_, crate::Error>(expert.act(env.inner().car()).to_vec()),
+        |_, _| Ok(()),
+    )?;
+    let summary = EpisodeSummary {
+        success: run.last.info.get(INFO_SUCCESS) == Some(1.0),
+        distance: trajectory.rewards.iter().flatten().sum(),
+        steps: trajectory.actions.len(),
+    };
+    Ok((trajectory, summary))
 }
 
 /// `episodes` scripted demonstrations on `config`'s track, with true
@@ -211,6 +193,55 @@ pub fn expert_demos(config: &DriveConfig, episodes: usize, seed: u64) -> Result<
         demos.trajectories.push(t);
     }
     Ok(demos)
+}
+
+/// Who drives scripted demonstrations: the smooth [`Expert`] that knows the
+/// whole layout, or the person-like [`crate::HumanDriver`] (key taps
+/// through the recorder's key model, reaction delays, lane wobble, only the
+/// road ahead in view) with its default [`crate::HumanConfig`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ExpertStyle {
+    /// The scripted expert ([`expert_demos`]).
+    #[default]
+    Script,
+    /// The person-like driver ([`crate::human_demos`]).
+    Human,
+}
+
+impl ExpertStyle {
+    /// `episodes` demonstrations on `config`'s road by this driver, from the
+    /// demo stream of `seed`.
+    ///
+    /// # Errors
+    /// [`crate::Error::InvalidConfig`] for an invalid config.
+    pub fn demos(self, config: &DriveConfig, episodes: usize, seed: u64) -> Result<Demos> {
+        match self {
+            ExpertStyle::Script => expert_demos(config, episodes, seed),
+            ExpertStyle::Human => {
+                crate::human_demos(config, &crate::HumanConfig::default(), episodes, seed)
+            }
+        }
+    }
+
+    /// Who drove, for a summary line.
+    pub fn who(self) -> &'static str {
+        match self {
+            ExpertStyle::Script => "scripted expert",
+            ExpertStyle::Human => "person-like (human-style script)",
+        }
+    }
+}
+
+impl std::str::FromStr for ExpertStyle {
+    type Err = String;
+    /// `script` or `human`.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "script" => Ok(ExpertStyle::Script),
+            "human" => Ok(ExpertStyle::Human),
+            other => Err(format!("unknown style `{other}` (script or human)")),
+        }
+    }
 }
 
 /// Runs the expert once on each track seed in `track_seeds` (reset seed
@@ -272,5 +303,17 @@ mod tests {
             assert!((y - prev).abs() < 0.1, "jump at {x}");
             prev = y;
         }
+    }
+
+    #[test]
+    fn styles_parse_by_name_and_drive_their_own_way() {
+        assert_eq!("script".parse(), Ok(ExpertStyle::Script));
+        assert_eq!("human".parse(), Ok(ExpertStyle::Human));
+        assert!("robot".parse::<ExpertStyle>().is_err());
+        let c = DriveConfig::default();
+        let script = ExpertStyle::Script.demos(&c, 1, 3).unwrap();
+        assert_eq!(script, expert_demos(&c, 1, 3).unwrap());
+        let human = ExpertStyle::Human.demos(&c, 1, 3).unwrap();
+        assert_ne!(human.trajectories, script.trajectories);
     }
 }

@@ -38,7 +38,7 @@ pub mod track;
 pub use config::{ACT_DIM, CONTROL_HZ, DriveConfig, NUM_RAYS, OBS_DIM};
 pub use env::{CarState, DriveEnv, World, make_env};
 pub use error::{Error, Result};
-pub use expert::{Expert, expert_demos};
+pub use expert::{Expert, ExpertStyle, expert_demos};
 pub use human::{HumanConfig, HumanDriver, human_demos};
 pub use record::{DriveKey, KeyEvent, Recorder};
 pub use render::{PathEnd, PathSpec, RenderOptions, render_png};

@@ -26,7 +26,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use red_core::DifferentiableReward;
 use red_core::checkpoint::load_checkpoint;
-use red_core::{DemoSource, Demos, Env, RewardModel as _};
+use red_core::{DemoSource, Demos, Env, RewardModel as _, record_episode};
 use red_drive::env::{INFO_COLLISION, INFO_SUCCESS};
 use red_drive::render::demo_path;
 use red_drive::scenario::{RoadSource, check_fits, differences, road_of};
@@ -834,29 +834,29 @@ fn rollout(
     reward: Option<(&dyn DifferentiableReward, Option<&TerminalHeuristic>)>,
 ) -> Result<Rollout> {
     let mut env = make_env(config)?;
-    let (mut obs, _) = env.reset(Some(seed))?;
+    let (obs, _) = env.reset(Some(seed))?;
     let mut poses = vec![*env.inner().car()];
-    let (mut observations, mut actions, mut distance) = (Vec::new(), Vec::new(), 0.0);
-    let end = loop {
-        let a = policy.act_deterministic(&obs)?;
-        let step = env.step(&a)?;
-        poses.push(*env.inner().car());
-        observations.push(obs);
-        actions.push(a);
-        distance += step.reward;
-        obs = step.observation;
-        if step.terminated {
-            break if step.info.get(INFO_SUCCESS) == Some(1.0) {
-                PathEnd::Success
-            } else if step.info.get(INFO_COLLISION) == Some(1.0) {
-                PathEnd::Collision
-            } else {
-                PathEnd::Stopped
-            };
+    let (t, run) = record_episode(
+        &mut env,
+        obs,
+        None,
+        |_, obs| Ok::<_, Error>(policy.act_deterministic(obs)?),
+        |env, _| {
+            poses.push(*env.inner().car());
+            Ok(())
+        },
+    )?;
+    let (observations, actions, distance) = (t.observations, t.actions, run.true_return);
+    let end = if run.last.terminated {
+        if run.last.info.get(INFO_SUCCESS) == Some(1.0) {
+            PathEnd::Success
+        } else if run.last.info.get(INFO_COLLISION) == Some(1.0) {
+            PathEnd::Collision
+        } else {
+            PathEnd::Stopped
         }
-        if step.truncated {
-            break PathEnd::Stopped;
-        }
+    } else {
+        PathEnd::Stopped
     };
     let mut own_return = 0.0;
     if let Some((r, term)) = reward {

@@ -32,6 +32,7 @@ pub mod imitation;
 pub mod mujoco;
 pub mod plot;
 pub mod run_dir;
+pub mod support;
 pub mod toy;
 
 pub use error::{Error, Result, ResultExt};

@@ -585,6 +585,30 @@ pub fn commit_partial(tmp: &Path, path: &Path) -> Result<()> {
     })
 }
 
+/// The JSON text `text`, read from `path`, as a `T`; a UTF-8 byte-order
+/// mark (as some Windows editors write) is skipped.
+///
+/// # Errors
+/// [`Error::Input`] naming `path` when the text is not a `T`.
+pub fn parse_json<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
+    serde_json::from_str(text.trim_start_matches('\u{feff}')).map_err(|e| Error::Input {
+        path: path.to_path_buf(),
+        reason: format!("parsing: {e}"),
+    })
+}
+
+/// The JSON file at `path` as a `T` (a config file, a settings file).
+///
+/// # Errors
+/// [`Error::Input`] naming `path` when it cannot be read or is not a `T`.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::Input {
+        path: path.to_path_buf(),
+        reason: format!("cannot read it: {e}"),
+    })?;
+    parse_json(&text, path)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -696,5 +720,24 @@ mod tests {
         );
         assert_eq!(Holder::parse(&h.contents()), Some(h));
         assert_eq!(Holder::parse("garbage"), None);
+    }
+
+    #[test]
+    fn json_files_skip_a_bom_and_name_the_file_when_bad() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.json");
+        std::fs::write(&p, "\u{feff}{\"a\": 2}").unwrap();
+        let v: serde_json::Value = read_json(&p).unwrap();
+        assert_eq!(v["a"], 2);
+        std::fs::write(&p, "{\"a\": ").unwrap();
+        let err = read_json::<serde_json::Value>(&p).unwrap_err().to_string();
+        assert!(err.contains("c.json") && err.contains("parsing"), "{err}");
+        let err = read_json::<serde_json::Value>(&dir.path().join("none.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("none.json") && err.contains("cannot read"),
+            "{err}"
+        );
     }
 }

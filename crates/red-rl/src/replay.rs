@@ -1,11 +1,24 @@
-//! A fixed-capacity replay buffer of transitions, stored as flat `f64` rows.
+//! The one replay buffer of the learners (DQN, SVG(1)-ER, SAC): a
+//! fixed-capacity ring of transitions stored as flat `f64` rows, growing up
+//! to its capacity and then overwriting the oldest.
 //!
 //! The stored reward is the IMITATION reward, written by the learner from its
-//! reward model, never the environment's. When an adaptive reward model
-//! (GAIL, GMMIL) changes, the learner relabels every stored transition at
-//! once with [`ReplayBuffer::relabel`], so no minibatch sees a stale reward,
-//! and a fixed model is evaluated once per transition rather than once per
-//! draw.
+//! reward model, never the environment's. Next to it the buffer keeps the
+//! terminal heuristic's adjustment (`bonus`, added with
+//! [`ReplayBuffer::adjust_last_reward`]) apart, so an adaptive reward can be
+//! recomputed without losing it: either for every stored transition at once
+//! with [`ReplayBuffer::relabel`] (DQN), or per minibatch with
+//! [`Batch::set_rewards`] (SVG(1)-ER, SAC). A buffer made
+//! [`ReplayBuffer::with_behaviour_logp`] also keeps each action's
+//! log-probability under the policy that took it (SVG(1)-ER's importance
+//! weights).
+//!
+//! Draws are uniform with replacement, one `random_range(0..len)` a row, so
+//! the same generator state gives the same indices in every learner.
+//!
+//! Serialised form: the fields below with flat rows. Older checkpoints still
+//! load: SVG(1)-ER's buffer stored one `Vec` a row and no dimensions, SAC's
+//! flat rows without dimensions, and DQN's a preallocated ring with `len`.
 
 use ndarray::Array2;
 use rand::{Rng, RngExt};
@@ -22,14 +35,42 @@ pub struct Batch {
     pub actions: Array2<f64>,
     /// Next states `(b, obs_dim)`.
     pub next_states: Array2<f64>,
-    /// Imitation rewards, `b` entries.
+    /// Stored (imitation) rewards, the terminal adjustment included.
     pub rewards: Vec<f64>,
+    /// The terminal adjustment alone (0 except at an episode's last step).
+    pub bonus: Vec<f64>,
     /// Whether the next state is terminal (no bootstrapping), `b` entries.
     pub terminated: Vec<bool>,
+    /// Log-probability of each action under the behaviour policy; empty
+    /// unless the buffer keeps them.
+    pub behaviour_logp: Vec<f64>,
 }
 
-/// Ring buffer of `(s, a, r, s', terminated)` transitions.
+impl Batch {
+    /// Replaces the rewards by freshly computed imitation rewards `r`, one a
+    /// row, keeping the terminal adjustment: `rewards[i] = r[i] + bonus[i]`.
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] if `r` has not one entry a row.
+    pub fn set_rewards(&mut self, r: &[f64]) -> Result<()> {
+        if r.len() != self.rewards.len() {
+            return Err(Error::ShapeMismatch {
+                what: "minibatch rewards".into(),
+                expected: format!("{}", self.rewards.len()),
+                got: format!("{}", r.len()),
+            });
+        }
+        for (i, ri) in r.iter().enumerate() {
+            self.rewards[i] = ri + self.bonus[i];
+        }
+        Ok(())
+    }
+}
+
+/// Ring buffer of `(s, a, r, s', terminated)` transitions; see the module
+/// documentation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "StoredReplay")]
 pub struct ReplayBuffer {
     capacity: usize,
     obs_dim: usize,
@@ -38,9 +79,113 @@ pub struct ReplayBuffer {
     actions: Vec<f64>,
     next_states: Vec<f64>,
     rewards: Vec<f64>,
+    bonus: Vec<f64>,
     terminated: Vec<bool>,
-    len: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    behaviour_logp: Option<Vec<f64>>,
     next: usize,
+}
+
+/// Rows as stored: flat, or one `Vec` a row (SVG(1)-ER before the buffers
+/// were one).
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum StoredRows {
+    Flat(Vec<f64>),
+    Nested(Vec<Vec<f64>>),
+}
+
+impl StoredRows {
+    /// The flat rows and, when they say it, the row width.
+    fn flatten(self) -> (Vec<f64>, Option<usize>) {
+        match self {
+            StoredRows::Flat(v) => (v, None),
+            StoredRows::Nested(rows) => {
+                let width = rows.first().map(Vec::len);
+                (rows.concat(), width)
+            }
+        }
+    }
+}
+
+/// Every serialised form of [`ReplayBuffer`], this one and older ones.
+#[derive(Deserialize)]
+struct StoredReplay {
+    capacity: usize,
+    #[serde(default)]
+    obs_dim: Option<usize>,
+    #[serde(default)]
+    act_dim: Option<usize>,
+    states: StoredRows,
+    actions: StoredRows,
+    next_states: StoredRows,
+    rewards: Vec<f64>,
+    #[serde(default)]
+    bonus: Option<Vec<f64>>,
+    terminated: Vec<bool>,
+    #[serde(default)]
+    behaviour_logp: Option<Vec<f64>>,
+    /// DQN's older preallocated ring: how many rows are filled.
+    #[serde(default)]
+    len: Option<usize>,
+    next: usize,
+}
+
+impl TryFrom<StoredReplay> for ReplayBuffer {
+    type Error = String;
+
+    fn try_from(s: StoredReplay) -> std::result::Result<Self, String> {
+        let (mut states, sw) = s.states.flatten();
+        let (mut actions, aw) = s.actions.flatten();
+        let (mut next_states, _) = s.next_states.flatten();
+        let mut rewards = s.rewards;
+        let mut terminated = s.terminated;
+        let n = s.len.unwrap_or(rewards.len());
+        let width = |given: Option<usize>, nested: Option<usize>, flat: usize| {
+            given.or(nested).unwrap_or(if rewards.is_empty() {
+                0
+            } else {
+                flat / rewards.len()
+            })
+        };
+        let obs_dim = width(s.obs_dim, sw, states.len());
+        let act_dim = width(s.act_dim, aw, actions.len());
+        states.truncate(n * obs_dim);
+        next_states.truncate(n * obs_dim);
+        actions.truncate(n * act_dim);
+        rewards.truncate(n);
+        terminated.truncate(n);
+        let bonus = s.bonus.unwrap_or_else(|| vec![0.0; n]);
+        let ok = s.capacity > 0
+            && n <= s.capacity
+            && s.next < s.capacity
+            && states.len() == n * obs_dim
+            && next_states.len() == n * obs_dim
+            && actions.len() == n * act_dim
+            && rewards.len() == n
+            && terminated.len() == n
+            && bonus.len() == n
+            && s.behaviour_logp.as_ref().is_none_or(|l| l.len() == n);
+        if !ok {
+            return Err(format!(
+                "replay buffer: inconsistent stored rows ({n} rewards, capacity {})",
+                s.capacity
+            ));
+        }
+        Ok(Self {
+            capacity: s.capacity,
+            obs_dim,
+            act_dim,
+            states,
+            actions,
+            next_states,
+            rewards,
+            bonus,
+            terminated,
+            behaviour_logp: s.behaviour_logp,
+            next: s.next,
+        })
+    }
 }
 
 impl ReplayBuffer {
@@ -65,30 +210,40 @@ impl ReplayBuffer {
             capacity,
             obs_dim,
             act_dim,
-            states: vec![0.0; capacity * obs_dim],
-            actions: vec![0.0; capacity * act_dim],
-            next_states: vec![0.0; capacity * obs_dim],
-            rewards: vec![0.0; capacity],
-            terminated: vec![false; capacity],
-            len: 0,
+            states: Vec::new(),
+            actions: Vec::new(),
+            next_states: Vec::new(),
+            rewards: Vec::new(),
+            bonus: Vec::new(),
+            terminated: Vec::new(),
+            behaviour_logp: None,
             next: 0,
         })
     }
 
+    /// The same buffer keeping each action's behaviour log-probability,
+    /// given to [`ReplayBuffer::push_with_logp`].
+    pub fn with_behaviour_logp(mut self) -> Self {
+        self.behaviour_logp = Some(Vec::new());
+        self
+    }
+
     /// Number of transitions held.
     pub fn len(&self) -> usize {
-        self.len
+        self.rewards.len()
     }
 
     /// Whether the buffer is empty.
     pub fn is_empty(&self) -> bool {
-        self.len == 0
+        self.rewards.is_empty()
     }
 
     /// Adds a transition, overwriting the oldest when full.
     ///
     /// # Errors
-    /// [`Error::ShapeMismatch`] if a vector has the wrong length.
+    /// [`Error::ShapeMismatch`] if a vector has the wrong length;
+    /// [`Error::InvalidConfig`] if the buffer keeps behaviour
+    /// log-probabilities (use [`ReplayBuffer::push_with_logp`]).
     pub fn push(
         &mut self,
         state: &[f64],
@@ -97,6 +252,48 @@ impl ReplayBuffer {
         next_state: &[f64],
         terminated: bool,
     ) -> Result<()> {
+        self.push_row(state, action, reward, next_state, terminated, None)
+    }
+
+    /// Adds a transition with the log-probability of its action under the
+    /// policy that took it.
+    ///
+    /// # Errors
+    /// As [`ReplayBuffer::push`]; [`Error::InvalidConfig`] if the buffer was
+    /// not made [`ReplayBuffer::with_behaviour_logp`].
+    pub fn push_with_logp(
+        &mut self,
+        state: &[f64],
+        action: &[f64],
+        behaviour_logp: f64,
+        reward: f64,
+        next_state: &[f64],
+        terminated: bool,
+    ) -> Result<()> {
+        self.push_row(
+            state,
+            action,
+            reward,
+            next_state,
+            terminated,
+            Some(behaviour_logp),
+        )
+    }
+
+    fn push_row(
+        &mut self,
+        state: &[f64],
+        action: &[f64],
+        reward: f64,
+        next_state: &[f64],
+        terminated: bool,
+        logp: Option<f64>,
+    ) -> Result<()> {
+        if self.is_empty() && self.obs_dim == 0 && self.act_dim == 0 {
+            // An empty buffer loaded from a form without dimensions.
+            self.obs_dim = state.len();
+            self.act_dim = action.len();
+        }
         for (what, got, want) in [
             ("state", state.len(), self.obs_dim),
             ("action", action.len(), self.act_dim),
@@ -110,15 +307,49 @@ impl ReplayBuffer {
                 });
             }
         }
-        let i = self.next;
-        self.states[i * self.obs_dim..(i + 1) * self.obs_dim].copy_from_slice(state);
-        self.actions[i * self.act_dim..(i + 1) * self.act_dim].copy_from_slice(action);
-        self.next_states[i * self.obs_dim..(i + 1) * self.obs_dim].copy_from_slice(next_state);
-        self.rewards[i] = reward;
-        self.terminated[i] = terminated;
+        if self.behaviour_logp.is_some() != logp.is_some() {
+            return Err(Error::InvalidConfig {
+                field: "behaviour_logp".into(),
+                reason: "give it exactly when the buffer keeps it".into(),
+            });
+        }
+        let (o, a) = (self.obs_dim, self.act_dim);
+        if self.len() < self.capacity {
+            self.states.extend_from_slice(state);
+            self.actions.extend_from_slice(action);
+            self.next_states.extend_from_slice(next_state);
+            self.rewards.push(reward);
+            self.bonus.push(0.0);
+            self.terminated.push(terminated);
+            if let (Some(l), Some(v)) = (self.behaviour_logp.as_mut(), logp) {
+                l.push(v);
+            }
+        } else {
+            let i = self.next;
+            self.states[i * o..(i + 1) * o].copy_from_slice(state);
+            self.actions[i * a..(i + 1) * a].copy_from_slice(action);
+            self.next_states[i * o..(i + 1) * o].copy_from_slice(next_state);
+            self.rewards[i] = reward;
+            self.bonus[i] = 0.0;
+            self.terminated[i] = terminated;
+            if let (Some(l), Some(v)) = (self.behaviour_logp.as_mut(), logp) {
+                l[i] = v;
+            }
+        }
         self.next = (self.next + 1) % self.capacity;
-        self.len = (self.len + 1).min(self.capacity);
         Ok(())
+    }
+
+    /// Adds `delta` to the stored reward of the most recent transition and
+    /// to its terminal adjustment (the terminal reward heuristic at an
+    /// episode's end). Does nothing on an empty buffer.
+    pub fn adjust_last_reward(&mut self, delta: f64) {
+        if self.is_empty() {
+            return;
+        }
+        let i = (self.next + self.capacity - 1) % self.capacity;
+        self.rewards[i] += delta;
+        self.bonus[i] += delta;
     }
 
     /// Draws `batch` transitions uniformly with replacement.
@@ -126,10 +357,11 @@ impl ReplayBuffer {
     /// # Errors
     /// [`Error::InvalidConfig`] if the buffer is empty or `batch` is 0.
     pub fn sample<R: Rng + ?Sized>(&self, batch: usize, rng: &mut R) -> Result<Batch> {
-        if self.len == 0 || batch == 0 {
+        let len = self.len();
+        if len == 0 || batch == 0 {
             return Err(Error::InvalidConfig {
-                field: "batch".into(),
-                reason: format!("cannot draw {batch} transitions from {} held", self.len),
+                field: "batch_size".into(),
+                reason: format!("cannot draw {batch} transitions from {len} held"),
             });
         }
         let (o, a) = (self.obs_dim, self.act_dim);
@@ -137,11 +369,13 @@ impl ReplayBuffer {
             states: Array2::zeros((batch, o)),
             actions: Array2::zeros((batch, a)),
             next_states: Array2::zeros((batch, o)),
-            rewards: vec![0.0; batch],
-            terminated: vec![false; batch],
+            rewards: Vec::with_capacity(batch),
+            bonus: Vec::with_capacity(batch),
+            terminated: Vec::with_capacity(batch),
+            behaviour_logp: Vec::new(),
         };
         for r in 0..batch {
-            let i = rng.random_range(0..self.len);
+            let i = rng.random_range(0..len);
             for j in 0..o {
                 out.states[[r, j]] = self.states[i * o + j];
                 out.next_states[[r, j]] = self.next_states[i * o + j];
@@ -149,14 +383,19 @@ impl ReplayBuffer {
             for j in 0..a {
                 out.actions[[r, j]] = self.actions[i * a + j];
             }
-            out.rewards[r] = self.rewards[i];
-            out.terminated[r] = self.terminated[i];
+            out.rewards.push(self.rewards[i]);
+            out.bonus.push(self.bonus[i]);
+            out.terminated.push(self.terminated[i]);
+            if let Some(l) = &self.behaviour_logp {
+                out.behaviour_logp.push(l[i]);
+            }
         }
         Ok(out)
     }
 
     /// Recomputes every stored reward with `f`, which maps a batch of states
-    /// `(len, obs_dim)` and actions `(len, act_dim)` to `len` rewards.
+    /// `(len, obs_dim)` and actions `(len, act_dim)` to `len` rewards; the
+    /// terminal adjustment is kept (added to `f`'s reward).
     ///
     /// # Errors
     /// `f`'s errors, or [`Error::ShapeMismatch`] if it returns a wrong count.
@@ -164,20 +403,21 @@ impl ReplayBuffer {
         &mut self,
         f: impl FnOnce(Array2<f64>, Array2<f64>) -> Result<Vec<f64>>,
     ) -> Result<()> {
-        let n = self.len;
-        let s = Array2::from_shape_vec((n, self.obs_dim), self.states[..n * self.obs_dim].to_vec())
-            .map_err(|e| Error::ShapeMismatch {
+        let n = self.len();
+        let s = Array2::from_shape_vec((n, self.obs_dim), self.states.clone()).map_err(|e| {
+            Error::ShapeMismatch {
                 what: "stored states".into(),
                 expected: format!("({n}, {})", self.obs_dim),
                 got: e.to_string(),
-            })?;
-        let a =
-            Array2::from_shape_vec((n, self.act_dim), self.actions[..n * self.act_dim].to_vec())
-                .map_err(|e| Error::ShapeMismatch {
-                    what: "stored actions".into(),
-                    expected: format!("({n}, {})", self.act_dim),
-                    got: e.to_string(),
-                })?;
+            }
+        })?;
+        let a = Array2::from_shape_vec((n, self.act_dim), self.actions.clone()).map_err(|e| {
+            Error::ShapeMismatch {
+                what: "stored actions".into(),
+                expected: format!("({n}, {})", self.act_dim),
+                got: e.to_string(),
+            }
+        })?;
         let r = f(s, a)?;
         if r.len() != n {
             return Err(Error::ShapeMismatch {
@@ -186,19 +426,22 @@ impl ReplayBuffer {
                 got: format!("{}", r.len()),
             });
         }
-        self.rewards[..n].copy_from_slice(&r);
+        for (i, ri) in r.iter().enumerate() {
+            self.rewards[i] = ri + self.bonus[i];
+        }
         Ok(())
     }
 
     /// The `k` most recent transitions' states and actions, oldest first:
     /// `((k, obs_dim), (k, act_dim))` with `k = min(k, len)`.
     pub fn recent(&self, k: usize) -> (Array2<f64>, Array2<f64>) {
-        let k = k.min(self.len);
+        let len = self.len();
+        let k = k.min(len);
         let (o, a) = (self.obs_dim, self.act_dim);
         let mut s = Array2::zeros((k, o));
         let mut u = Array2::zeros((k, a));
         for r in 0..k {
-            let i = (self.next + self.capacity - k + r) % self.capacity;
+            let i = (self.next + len - k + r) % len;
             for j in 0..o {
                 s[[r, j]] = self.states[i * o + j];
             }
@@ -257,5 +500,110 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
         assert!(b.sample(4, &mut rng).is_err());
         assert!(ReplayBuffer::new(0, 1, 1).is_err());
+    }
+
+    /// A buffer of capacity 3 after pushing 4 transitions of one state
+    /// number and one action number, with a bonus on the last one.
+    fn filled(logp: bool) -> ReplayBuffer {
+        let mut b = ReplayBuffer::new(3, 1, 1).unwrap();
+        if logp {
+            b = b.with_behaviour_logp();
+        }
+        for i in 0..4 {
+            let x = i as f64;
+            if logp {
+                b.push_with_logp(&[x], &[-x], -0.5 * x, x, &[x + 1.0], false)
+                    .unwrap();
+            } else {
+                b.push(&[x], &[-x], x, &[x + 1.0], false).unwrap();
+            }
+        }
+        b.adjust_last_reward(0.25);
+        b
+    }
+
+    #[test]
+    fn bonus_survives_relabelling_and_logp_is_kept() {
+        let mut b = filled(true);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let batch = b.sample(40, &mut rng).unwrap();
+        for r in 0..40 {
+            let x = batch.states[[r, 0]];
+            assert_eq!(batch.behaviour_logp[r], -0.5 * x);
+            assert_eq!(batch.bonus[r], if x == 3.0 { 0.25 } else { 0.0 });
+            assert_eq!(batch.rewards[r], x + batch.bonus[r]);
+        }
+        let mut batch2 = batch.clone();
+        batch2.set_rewards(&vec![1.0; 40]).unwrap();
+        for r in 0..40 {
+            assert_eq!(batch2.rewards[r], 1.0 + batch.bonus[r]);
+        }
+        assert!(batch2.set_rewards(&[1.0]).is_err());
+        b.relabel(|s, _| Ok(vec![0.0; s.nrows()])).unwrap();
+        let batch = b.sample(40, &mut rng).unwrap();
+        for r in 0..40 {
+            assert_eq!(batch.rewards[r], batch.bonus[r]);
+        }
+        // A buffer that keeps log-probabilities wants them, and only it.
+        assert!(b.push(&[0.0], &[0.0], 0.0, &[0.0], false).is_err());
+        let mut plain = filled(false);
+        assert!(
+            plain
+                .push_with_logp(&[0.0], &[0.0], 0.0, 0.0, &[0.0], false)
+                .is_err()
+        );
+        assert!(plain.sample(5, &mut rng).unwrap().behaviour_logp.is_empty());
+    }
+
+    #[test]
+    fn serialised_form_round_trips_and_draws_the_same_rows() {
+        for logp in [false, true] {
+            let b = filled(logp);
+            let text = serde_json::to_string(&b).unwrap();
+            let back: ReplayBuffer = serde_json::from_str(&text).unwrap();
+            assert_eq!(back, b);
+        }
+    }
+
+    /// The forms the three buffers had before they were one still load,
+    /// and equal the buffer that the same pushes make today.
+    #[test]
+    fn older_serialised_forms_load() {
+        // SVG(1)-ER: one Vec a row, no dimensions, log-probabilities.
+        let svg = r#"{"capacity":3,"states":[[3.0],[1.0],[2.0]],"actions":[[-3.0],[-1.0],[-2.0]],
+            "next_states":[[4.0],[2.0],[3.0]],"rewards":[3.25,1.0,2.0],"bonus":[0.25,0.0,0.0],
+            "terminated":[false,false,false],"behaviour_logp":[-1.5,-0.5,-1.0],"next":1}"#;
+        let b: ReplayBuffer = serde_json::from_str(svg).unwrap();
+        assert_eq!(b, filled(true));
+        // SAC: flat rows, no dimensions, no log-probabilities.
+        let sac = r#"{"capacity":3,"states":[3.0,1.0,2.0],"actions":[-3.0,-1.0,-2.0],
+            "next_states":[4.0,2.0,3.0],"rewards":[3.25,1.0,2.0],"bonus":[0.25,0.0,0.0],
+            "terminated":[false,false,false],"next":1}"#;
+        let b: ReplayBuffer = serde_json::from_str(sac).unwrap();
+        assert_eq!(b, filled(false));
+        // DQN: a preallocated ring with `len`, no bonus.
+        let dqn = r#"{"capacity":3,"obs_dim":1,"act_dim":1,"states":[0.0,1.0,0.0],
+            "actions":[0.0,-1.0,0.0],"next_states":[1.0,2.0,0.0],"rewards":[0.0,1.0,0.0],
+            "terminated":[false,false,false],"len":2,"next":2}"#;
+        let b: ReplayBuffer = serde_json::from_str(dqn).unwrap();
+        let mut want = ReplayBuffer::new(3, 1, 1).unwrap();
+        want.push(&[0.0], &[0.0], 0.0, &[1.0], false).unwrap();
+        want.push(&[1.0], &[-1.0], 1.0, &[2.0], false).unwrap();
+        assert_eq!(b, want);
+        // An empty old SVG(1)-ER buffer takes its dimensions from the first
+        // push.
+        let empty = r#"{"capacity":3,"states":[],"actions":[],"next_states":[],"rewards":[],
+            "bonus":[],"terminated":[],"behaviour_logp":[],"next":0}"#;
+        let mut b: ReplayBuffer = serde_json::from_str(empty).unwrap();
+        b.push_with_logp(&[1.0, 2.0], &[0.5], -1.0, 0.0, &[2.0, 3.0], true)
+            .unwrap();
+        assert!(
+            b.push_with_logp(&[1.0], &[0.5], -1.0, 0.0, &[2.0], true)
+                .is_err()
+        );
+        // Inconsistent rows are refused.
+        let bad = r#"{"capacity":3,"states":[1.0],"actions":[1.0],"next_states":[],"rewards":[1.0],
+            "terminated":[false],"next":1}"#;
+        assert!(serde_json::from_str::<ReplayBuffer>(bad).is_err());
     }
 }

@@ -8,16 +8,13 @@
 
 use ndarray::Array2;
 use rand::{Rng, RngExt};
-use red_core::{Env, Space, Step, TRUE_REWARD};
+use red_core::{Env, Space, run_episode};
 use serde::{Deserialize, Serialize};
 
 use crate::policy::{GaussianPolicy, PolicyWorkspace};
 use crate::{Error, Result};
 
-/// The environment's true reward of a step (see the module documentation).
-pub fn true_reward(step: &Step) -> f64 {
-    step.info.get(TRUE_REWARD).unwrap_or(step.reward)
-}
+pub use red_core::episode::true_reward;
 
 /// Bounds of a box action space, or an error naming what is wrong.
 ///
@@ -148,7 +145,6 @@ fn run_episodes<E: Env + ?Sized, R: Rng + ?Sized>(
     });
     let mut ws = PolicyWorkspace::default();
     let mut a = vec![0.0; policy.act_dim()];
-    let mut clipped = a.clone();
     let mut report = EvalReport {
         returns: Vec::with_capacity(episodes),
         lengths: Vec::with_capacity(episodes),
@@ -156,27 +152,29 @@ fn run_episodes<E: Env + ?Sized, R: Rng + ?Sized>(
     };
     let mut totals: Vec<(&'static str, f64)> = Vec::new();
     for seed in seeds {
-        let (mut obs, _) = env.reset(Some(seed))?;
-        let (mut ret, mut len) = (0.0, 0);
-        loop {
-            policy.act_into(&obs, noise.as_mut(), &mut ws, &mut a)?;
-            clip_into(&a, &low, &high, &mut clipped);
-            let step = env.step(&clipped)?;
-            ret += true_reward(&step);
-            len += 1;
-            for (k, v) in step.info.iter() {
-                match totals.iter_mut().find(|e| e.0 == k) {
-                    Some(e) => e.1 += v,
-                    None => totals.push((k, v)),
+        let (obs, _) = env.reset(Some(seed))?;
+        let run = run_episode(
+            env,
+            obs,
+            max_steps,
+            |_, obs| {
+                policy.act_into(obs, noise.as_mut(), &mut ws, &mut a)?;
+                let mut clipped = vec![0.0; a.len()];
+                clip_into(&a, &low, &high, &mut clipped);
+                Ok::<_, Error>(clipped)
+            },
+            |_, _, _, step| {
+                for (k, v) in step.info.iter() {
+                    match totals.iter_mut().find(|e| e.0 == k) {
+                        Some(e) => e.1 += v,
+                        None => totals.push((k, v)),
+                    }
                 }
-            }
-            if step.terminated || step.truncated || max_steps.is_some_and(|m| len >= m) {
-                break;
-            }
-            obs = step.observation;
-        }
-        report.returns.push(ret);
-        report.lengths.push(len);
+                Ok(())
+            },
+        )?;
+        report.returns.push(run.true_return);
+        report.lengths.push(run.length);
     }
     let n = episodes.max(1) as f64;
     report.info_totals = totals

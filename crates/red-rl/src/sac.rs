@@ -36,6 +36,7 @@ use red_nets::{
 };
 
 use crate::policy::{GaussianBatch, GaussianPolicy, PolicyWorkspace};
+use crate::replay::{Batch, ReplayBuffer};
 use crate::svg::{DifferentiableReward, EpisodeOutcome, EpisodeReport};
 use crate::{Error, Result};
 
@@ -193,37 +194,9 @@ impl ScalarAdam {
     }
 }
 
-/// Replayed transitions, flat rows, growing up to `capacity`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct SacReplay {
-    capacity: usize,
-    states: Vec<f64>,
-    actions: Vec<f64>,
-    next_states: Vec<f64>,
-    rewards: Vec<f64>,
-    /// The terminal heuristic's adjustment, kept apart from `rewards` so an
-    /// adaptive reward can be recomputed without losing it.
-    bonus: Vec<f64>,
-    terminated: Vec<bool>,
-    next: usize,
-}
-
-/// A minibatch for the SAC updates; rows are transitions.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SacBatch {
-    /// Raw states `(b, obs_dim)`.
-    pub states: Array2<f64>,
-    /// Actions taken `(b, act_dim)`, in `(-1, 1)`.
-    pub actions: Array2<f64>,
-    /// Raw next states `(b, obs_dim)`.
-    pub next_states: Array2<f64>,
-    /// Stored rewards (imitation reward plus the terminal adjustment).
-    pub rewards: Vec<f64>,
-    /// The terminal adjustment alone.
-    pub bonus: Vec<f64>,
-    /// Whether the next state is terminal (no bootstrap).
-    pub terminated: Vec<bool>,
-}
+/// A minibatch for the SAC updates: the replay buffer's [`Batch`]; actions
+/// lie in `(-1, 1)`.
+pub type SacBatch = Batch;
 
 /// Losses and statistics of one update.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -252,7 +225,7 @@ pub struct Sac {
     q2_opt: Adam,
     log_alpha: f64,
     alpha_opt: ScalarAdam,
-    replay: SacReplay,
+    replay: ReplayBuffer,
     env_steps: u64,
 }
 
@@ -339,16 +312,7 @@ impl Sac {
                 v: 0.0,
                 t: 0,
             },
-            replay: SacReplay {
-                capacity: config.buffer_size,
-                states: Vec::new(),
-                actions: Vec::new(),
-                next_states: Vec::new(),
-                rewards: Vec::new(),
-                bonus: Vec::new(),
-                terminated: Vec::new(),
-                next: 0,
-            },
+            replay: ReplayBuffer::new(config.buffer_size, o, a)?,
             env_steps: 0,
             config: config.clone(),
             policy,
@@ -384,7 +348,7 @@ impl Sac {
 
     /// Transitions held in replay.
     pub fn replay_len(&self) -> usize {
-        self.replay.rewards.len()
+        self.replay.len()
     }
 
     /// Environment steps seen by [`Sac::run_episode`].
@@ -471,45 +435,14 @@ impl Sac {
         next_state: &[f64],
         terminated: bool,
     ) -> Result<()> {
-        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
-        if state.len() != o || next_state.len() != o || action.len() != a {
-            return Err(Error::ShapeMismatch {
-                what: "SAC transition".into(),
-                expected: format!("states of {o} and an action of {a}"),
-                got: format!("{}, {} and {}", state.len(), next_state.len(), action.len()),
-            });
-        }
-        let r = &mut self.replay;
-        if r.rewards.len() < r.capacity {
-            r.states.extend_from_slice(state);
-            r.actions.extend_from_slice(action);
-            r.next_states.extend_from_slice(next_state);
-            r.rewards.push(reward);
-            r.bonus.push(0.0);
-            r.terminated.push(terminated);
-        } else {
-            let i = r.next;
-            r.states[i * o..(i + 1) * o].copy_from_slice(state);
-            r.actions[i * a..(i + 1) * a].copy_from_slice(action);
-            r.next_states[i * o..(i + 1) * o].copy_from_slice(next_state);
-            r.rewards[i] = reward;
-            r.bonus[i] = 0.0;
-            r.terminated[i] = terminated;
-        }
-        r.next = (r.next + 1) % r.capacity;
-        Ok(())
+        self.replay
+            .push(state, action, reward, next_state, terminated)
     }
 
     /// Adds `delta` to the stored reward of the most recent transition (the
     /// terminal reward heuristic at an episode's end).
     pub fn adjust_last_reward(&mut self, delta: f64) {
-        let r = &mut self.replay;
-        if r.rewards.is_empty() {
-            return;
-        }
-        let i = (r.next + r.capacity - 1) % r.capacity;
-        r.rewards[i] += delta;
-        r.bonus[i] += delta;
+        self.replay.adjust_last_reward(delta);
     }
 
     /// Draws `n` transitions uniformly with replacement.
@@ -517,37 +450,7 @@ impl Sac {
     /// # Errors
     /// [`Error::InvalidConfig`] if the replay is empty or `n` is 0.
     pub fn sample<R: Rng + ?Sized>(&self, n: usize, rng: &mut R) -> Result<SacBatch> {
-        let r = &self.replay;
-        let len = r.rewards.len();
-        if len == 0 || n == 0 {
-            return Err(Error::InvalidConfig {
-                field: "batch_size".into(),
-                reason: format!("cannot draw {n} transitions from {len} held"),
-            });
-        }
-        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
-        let mut b = SacBatch {
-            states: Array2::zeros((n, o)),
-            actions: Array2::zeros((n, a)),
-            next_states: Array2::zeros((n, o)),
-            rewards: Vec::with_capacity(n),
-            bonus: Vec::with_capacity(n),
-            terminated: Vec::with_capacity(n),
-        };
-        for row in 0..n {
-            let i = rng.random_range(0..len);
-            for j in 0..o {
-                b.states[[row, j]] = r.states[i * o + j];
-                b.next_states[[row, j]] = r.next_states[i * o + j];
-            }
-            for j in 0..a {
-                b.actions[[row, j]] = r.actions[i * a + j];
-            }
-            b.rewards.push(r.rewards[i]);
-            b.bonus.push(r.bonus[i]);
-            b.terminated.push(r.terminated[i]);
-        }
-        Ok(b)
+        self.replay.sample(n, rng)
     }
 
     fn clip(&self, grads: &mut red_nets::Gradients) {
@@ -697,9 +600,7 @@ impl Sac {
         let mut b = self.sample(self.config.batch_size, rng)?;
         if reward.is_adaptive() {
             let (r, _) = reward.reward_and_grad(b.states.view(), b.actions.view())?;
-            for (i, ri) in r.iter().enumerate() {
-                b.rewards[i] = ri + b.bonus[i];
-            }
+            b.set_rewards(&r.to_vec())?;
         }
         let critic_loss = self.update_critics(&b, rng)?;
         if !critic_loss.is_finite() {

@@ -39,6 +39,7 @@ use red_nets::{
 };
 
 use crate::policy::{GaussianPolicy, PolicyWorkspace};
+use crate::replay::{Batch, ReplayBuffer};
 use crate::{Error, Result};
 
 // The trait lives beside `RewardModel` in red-core; re-exported here where
@@ -227,40 +228,9 @@ impl SvgConfig {
     }
 }
 
-/// Replayed transitions with the behaviour policy's log-probabilities.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct Replay {
-    capacity: usize,
-    states: Vec<Vec<f64>>,
-    actions: Vec<Vec<f64>>,
-    next_states: Vec<Vec<f64>>,
-    rewards: Vec<f64>,
-    /// The terminal heuristic's adjustment, kept apart from `rewards` so an
-    /// adaptive reward can be recomputed without losing it.
-    bonus: Vec<f64>,
-    terminated: Vec<bool>,
-    behaviour_logp: Vec<f64>,
-    next: usize,
-}
-
-/// A minibatch for the SVG(1) updates; rows are transitions.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SvgBatch {
-    /// Raw states `(b, obs_dim)`.
-    pub states: Array2<f64>,
-    /// Actions taken `(b, act_dim)`.
-    pub actions: Array2<f64>,
-    /// Raw next states `(b, obs_dim)`.
-    pub next_states: Array2<f64>,
-    /// Stored (imitation) rewards, the terminal adjustment included.
-    pub rewards: Vec<f64>,
-    /// The terminal adjustment alone (0 except at an episode's last step).
-    pub bonus: Vec<f64>,
-    /// Whether the next state is terminal.
-    pub terminated: Vec<bool>,
-    /// Log-probability of each action under the behaviour policy.
-    pub behaviour_logp: Vec<f64>,
-}
+/// A minibatch for the SVG(1) updates: the replay buffer's [`Batch`], with
+/// the behaviour log-probabilities filled.
+pub type SvgBatch = Batch;
 
 /// The quantities held fixed in a policy step: the inferred policy noise
 /// `eta`, model noise `xi` and the truncated importance weights, computed at
@@ -314,7 +284,7 @@ pub struct Svg1 {
     policy_opt: Adam,
     model_opt: Adam,
     value_opt: Adam,
-    replay: Replay,
+    replay: ReplayBuffer,
     env_steps: u64,
     /// Polyak-averaged policy (when `policy_avg_tau > 0`).
     #[serde(default)]
@@ -370,17 +340,7 @@ impl Svg1 {
             policy_opt,
             model_opt,
             value_opt,
-            replay: Replay {
-                capacity: config.buffer_size,
-                states: Vec::new(),
-                actions: Vec::new(),
-                next_states: Vec::new(),
-                rewards: Vec::new(),
-                bonus: Vec::new(),
-                terminated: Vec::new(),
-                behaviour_logp: Vec::new(),
-                next: 0,
-            },
+            replay: ReplayBuffer::new(config.buffer_size, o, a)?.with_behaviour_logp(),
             env_steps: 0,
         })
     }
@@ -447,7 +407,7 @@ impl Svg1 {
 
     /// Transitions held in replay.
     pub fn replay_len(&self) -> usize {
-        self.replay.rewards.len()
+        self.replay.len()
     }
 
     /// Environment steps seen by [`Svg1::train`].
@@ -494,47 +454,20 @@ impl Svg1 {
         next_state: &[f64],
         terminated: bool,
     ) -> Result<()> {
-        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
-        if state.len() != o || next_state.len() != o || action.len() != a {
-            return Err(Error::ShapeMismatch {
-                what: "SVG transition".into(),
-                expected: format!("states of {o} and an action of {a}"),
-                got: format!("{}, {} and {}", state.len(), next_state.len(), action.len()),
-            });
-        }
-        let r = &mut self.replay;
-        if r.rewards.len() < r.capacity {
-            r.states.push(state.to_vec());
-            r.actions.push(action.to_vec());
-            r.next_states.push(next_state.to_vec());
-            r.rewards.push(reward);
-            r.bonus.push(0.0);
-            r.terminated.push(terminated);
-            r.behaviour_logp.push(behaviour_logp);
-        } else {
-            let i = r.next;
-            r.states[i] = state.to_vec();
-            r.actions[i] = action.to_vec();
-            r.next_states[i] = next_state.to_vec();
-            r.rewards[i] = reward;
-            r.bonus[i] = 0.0;
-            r.terminated[i] = terminated;
-            r.behaviour_logp[i] = behaviour_logp;
-        }
-        r.next = (r.next + 1) % r.capacity;
-        Ok(())
+        self.replay.push_with_logp(
+            state,
+            action,
+            behaviour_logp,
+            reward,
+            next_state,
+            terminated,
+        )
     }
 
     /// Adds `delta` to the stored reward of the most recent transition (the
     /// terminal reward heuristic at an episode's end).
     pub fn adjust_last_reward(&mut self, delta: f64) {
-        let r = &mut self.replay;
-        if r.rewards.is_empty() {
-            return;
-        }
-        let i = (r.next + r.capacity - 1) % r.capacity;
-        r.rewards[i] += delta;
-        r.bonus[i] += delta;
+        self.replay.adjust_last_reward(delta);
     }
 
     /// Draws `n` transitions uniformly with replacement.
@@ -542,39 +475,7 @@ impl Svg1 {
     /// # Errors
     /// [`Error::InvalidConfig`] if the replay is empty.
     pub fn sample<R: Rng + ?Sized>(&self, n: usize, rng: &mut R) -> Result<SvgBatch> {
-        let r = &self.replay;
-        let len = r.rewards.len();
-        if len == 0 || n == 0 {
-            return Err(Error::InvalidConfig {
-                field: "batch_size".into(),
-                reason: format!("cannot draw {n} transitions from {len} held"),
-            });
-        }
-        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
-        let mut b = SvgBatch {
-            states: Array2::zeros((n, o)),
-            actions: Array2::zeros((n, a)),
-            next_states: Array2::zeros((n, o)),
-            rewards: Vec::with_capacity(n),
-            bonus: Vec::with_capacity(n),
-            terminated: Vec::with_capacity(n),
-            behaviour_logp: Vec::with_capacity(n),
-        };
-        for row in 0..n {
-            let i = rng.random_range(0..len);
-            for j in 0..o {
-                b.states[[row, j]] = r.states[i][j];
-                b.next_states[[row, j]] = r.next_states[i][j];
-            }
-            for j in 0..a {
-                b.actions[[row, j]] = r.actions[i][j];
-            }
-            b.rewards.push(r.rewards[i]);
-            b.bonus.push(r.bonus[i]);
-            b.terminated.push(r.terminated[i]);
-            b.behaviour_logp.push(r.behaviour_logp[i]);
-        }
-        Ok(b)
+        self.replay.sample(n, rng)
     }
 
     /// Model input `[x, a]`.
@@ -819,9 +720,7 @@ impl Svg1 {
         let mut b = self.sample(bs, rng)?;
         if reward.is_adaptive() {
             let (r, _) = reward.reward_and_grad(b.states.view(), b.actions.view())?;
-            for (i, ri) in r.iter().enumerate() {
-                b.rewards[i] = ri + b.bonus[i];
-            }
+            b.set_rewards(&r.to_vec())?;
         }
         let w = self.importance_weights(&b)?;
         let value_loss = self.update_value(&b, &w)?;

@@ -27,7 +27,7 @@ use std::time::Instant;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use red_core::checkpoint::{load_checkpoint_for, write_atomic};
-use red_core::{Demos, Env, EpisodeEnd, RewardModel, Seeder, Space, Stream, Trajectory};
+use red_core::{Demos, Env, RewardModel, Seeder, Space, Stream, record_episode};
 use red_mujoco::watched::MJ_N_WARNING;
 use red_mujoco::{EnvId, MujocoEnv, WatchedEnv, describe_warnings};
 use red_rl::bc::{BcConfig, behavior_clone};
@@ -35,7 +35,7 @@ use red_rl::gail::GailConfig;
 use red_rl::gmmil::GmmilConfig;
 use red_rl::normalize::{DEFAULT_CLIP, DEFAULT_MIN_STD, ObsNormalizer};
 use red_rl::policy::GaussianPolicy;
-use red_rl::rollout::{EvalReport, evaluate, evaluate_sampled, true_reward};
+use red_rl::rollout::{EvalReport, evaluate, evaluate_sampled};
 use red_rl::trpo::{IterationMetrics, TrpoConfig, TrpoTrainer};
 use red_support::{AutoencoderConfig, ExpertScores, RedRewardConfig, RndConfig, Sigma1};
 use serde::{Deserialize, Serialize};
@@ -527,11 +527,7 @@ pub fn read_config(dir: &Path) -> Result<RunConfig> {
         path: p.clone(),
         reason: format!("cannot read it ({e}); is {} a run folder?", dir.display()),
     })?;
-    let cfg: RunConfig =
-        serde_json::from_str(text.trim_start_matches('\u{feff}')).map_err(|e| Error::Input {
-            path: p.clone(),
-            reason: format!("parsing: {e}"),
-        })?;
+    let cfg: RunConfig = crate::run_dir::parse_json(&text, &p)?;
     cfg.validate()
         .with_context(|| format!("checking {}", p.display()))?;
     Ok(cfg)
@@ -1169,31 +1165,16 @@ pub fn record_demos(id: EnvId, policy: &GaussianPolicy, n: usize, seed: u64) -> 
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for _ in 0..n {
         let s: u64 = rand::RngExt::random(&mut rng);
-        let (mut obs, _) = env.reset(Some(s))?;
-        let (mut observations, mut actions, mut rewards) = (Vec::new(), Vec::new(), Vec::new());
-        let end = loop {
-            let mut a = policy.act_deterministic(&obs)?;
+        let (obs, _) = env.reset(Some(s))?;
+        let act = |_: &WatchedEnv, obs: &[f64]| {
+            let mut a = policy.act_deterministic(obs)?;
             for j in 0..a.len() {
                 a[j] = a[j].clamp(low[j], high[j]);
             }
-            let step = env.step(&a)?;
-            observations.push(obs);
-            actions.push(a);
-            rewards.push(true_reward(&step));
-            obs = step.observation;
-            if step.terminated {
-                break EpisodeEnd::Terminated;
-            }
-            if step.truncated {
-                break EpisodeEnd::Truncated;
-            }
+            Ok::<_, Error>(a)
         };
-        demos.trajectories.push(Trajectory {
-            observations,
-            actions,
-            rewards: Some(rewards),
-            end,
-        });
+        let (trajectory, _) = record_episode(&mut env, obs, None, act, |_, _| Ok(()))?;
+        demos.trajectories.push(trajectory);
     }
     demos.validate()?;
     Ok(demos)

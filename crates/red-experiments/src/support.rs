@@ -1,0 +1,178 @@
+//! A support estimator on its own (`red-cli support`): fitting one on the
+//! expert pairs of a demonstration file, and scoring a file's pairs with a
+//! fitted model (the scores, the `σ1` a rule gives and RED's reward
+//! `exp(-σ1 L)`).
+
+use std::path::Path;
+use std::time::Instant;
+
+use ndarray::Array2;
+use red_core::{Demos, Seeder, Stream};
+use red_support::{
+    EstimatorConfig, FitProgress, FittedEstimator, RedRewardConfig, Sigma1, SupportEstimatorConfig,
+    SupportModel,
+};
+
+use crate::{Error, Result, ResultExt};
+
+/// The estimator config of `kind` (`rnd`, `ae`, `kpca`) from the JSON of
+/// its fields (`None`: the defaults), with `epochs` set when given,
+/// validated.
+///
+/// # Errors
+/// [`Error::Support`] for an unknown kind, bad JSON or a bad value, with
+/// the setting named (`--epochs` for kernel PCA, which has none).
+pub fn estimator_config(
+    kind: &str,
+    json: Option<&str>,
+    epochs: Option<usize>,
+) -> Result<EstimatorConfig> {
+    let mut cfg = EstimatorConfig::from_json(kind, json)?;
+    if let Some(e) = epochs {
+        cfg.set_epochs(e).with_context(|| "--epochs")?;
+    }
+    cfg.validate().with_context(|| "estimator config")?;
+    Ok(cfg)
+}
+
+/// The state-action pairs of `demos` (read from `path`), refusing a file
+/// without any; `what` says what they are for (`fit`, `score`).
+///
+/// # Errors
+/// [`Error::Input`] when there are no pairs.
+pub fn demo_pairs(demos: &Demos, path: &Path, what: &str) -> Result<(Array2<f64>, Array2<f64>)> {
+    let (s, a) = demos.pairs();
+    if s.nrows() == 0 {
+        return Err(Error::Input {
+            path: path.to_path_buf(),
+            reason: format!("no state-action pairs to {what}"),
+        });
+    }
+    Ok((s, a))
+}
+
+/// Fits `cfg` on the pairs `(s, a)` with the estimator stream of `seed`;
+/// returns the model and the seconds the fit took.
+///
+/// # Errors
+/// The estimator's errors.
+pub fn fit(
+    cfg: &EstimatorConfig,
+    (s, a): &(Array2<f64>, Array2<f64>),
+    seed: u64,
+    on_progress: &mut dyn FnMut(FitProgress),
+) -> Result<(FittedEstimator, f64)> {
+    let mut rng = Seeder::new(seed).rng(Stream::Estimator);
+    let start = Instant::now();
+    let model = cfg.fit(s.view(), a.view(), &mut rng, on_progress)?;
+    Ok((model, start.elapsed().as_secs_f64()))
+}
+
+/// What scoring a demonstration file's pairs with a fitted model gives.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScoreReport {
+    /// The scores `L`, sorted ascending.
+    pub scores: Vec<f64>,
+    /// The `σ1` used.
+    pub sigma1: f64,
+    /// How it was chosen ([`Sigma1::describe`]).
+    pub rule: String,
+    /// RED's rewards `exp(-σ1 L)`, sorted ascending.
+    pub rewards: Vec<f64>,
+    /// Share of the pairs with reward at least 0.9.
+    pub share_high: f64,
+}
+
+/// Scores the pairs of `demos` (read from `path`) with `model`; `σ1` is
+/// `sigma1` when given, else calibrated on the scored pairs by
+/// [`RedRewardConfig`]'s default rule.
+///
+/// # Errors
+/// [`Error::Input`] for a file of other dimensions than the model's or
+/// without pairs; [`Error::InvalidConfig`] for a `σ1` that is not finite
+/// and positive; the model's errors.
+pub fn score(
+    model: &FittedEstimator,
+    demos: &Demos,
+    path: &Path,
+    sigma1: Option<f64>,
+) -> Result<ScoreReport> {
+    if (demos.obs_dim, demos.act_dim) != (model.obs_dim(), model.act_dim()) {
+        return Err(Error::Input {
+            path: path.to_path_buf(),
+            reason: format!(
+                "has {} state + {} action numbers, the model was fitted on {} + {}",
+                demos.obs_dim,
+                demos.act_dim,
+                model.obs_dim(),
+                model.act_dim()
+            ),
+        });
+    }
+    let (s, a) = demo_pairs(demos, path, "score")?;
+    let mut scores = model.score(s.view(), a.view())?.to_vec();
+    scores.sort_by(f64::total_cmp);
+    let rule = sigma1.map_or(RedRewardConfig::default().sigma1, Sigma1::Fixed);
+    let sigma1 = rule.resolve(&scores)?;
+    if !(sigma1.is_finite() && sigma1 > 0.0) {
+        return Err(Error::InvalidConfig {
+            field: "--sigma1".into(),
+            reason: format!("must be finite and > 0, got {sigma1}"),
+        });
+    }
+    // exp(-sigma1 L) is decreasing in L, so the sorted rewards are the
+    // reversed sorted scores.
+    let rewards: Vec<f64> = scores.iter().rev().map(|l| (-sigma1 * l).exp()).collect();
+    let share_high = rewards.iter().filter(|r| **r >= 0.9).count() as f64 / rewards.len() as f64;
+    Ok(ScoreReport {
+        scores,
+        sigma1,
+        rule: rule.describe(),
+        rewards,
+        share_high,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use red_core::{EpisodeEnd, Trajectory};
+
+    fn demos(n: usize) -> Demos {
+        let mut d = Demos::new("Toy-v0", 2, 1, None);
+        if n > 0 {
+            d.trajectories.push(Trajectory {
+                observations: (0..n).map(|i| vec![i as f64 / n as f64, 0.5]).collect(),
+                actions: (0..n).map(|i| vec![(i % 3) as f64 / 3.0]).collect(),
+                rewards: None,
+                end: EpisodeEnd::Truncated,
+            });
+        }
+        d
+    }
+
+    #[test]
+    fn fits_and_scores_a_file_and_refuses_what_does_not_fit() {
+        let path = Path::new("demo.json");
+        let cfg = estimator_config("kpca", None, None).unwrap();
+        assert!(estimator_config("kpca", None, Some(3)).is_err());
+        assert!(estimator_config("nope", None, None).is_err());
+        let d = demos(40);
+        let pairs = demo_pairs(&d, path, "fit").unwrap();
+        let (model, secs) = fit(&cfg, &pairs, 0, &mut |_| {}).unwrap();
+        assert!(secs >= 0.0);
+        let r = score(&model, &d, path, None).unwrap();
+        assert_eq!(r.scores.len(), 40);
+        assert!(r.scores.windows(2).all(|w| w[0] <= w[1]));
+        assert!(r.rewards.windows(2).all(|w| w[0] <= w[1]));
+        assert!((0.0..=1.0).contains(&r.share_high));
+        let fixed = score(&model, &d, path, Some(2.0)).unwrap();
+        assert_eq!(fixed.sigma1, 2.0);
+        assert_eq!(fixed.rewards[0], (-2.0 * fixed.scores[39]).exp());
+        assert!(score(&model, &d, path, Some(-1.0)).is_err());
+        assert!(demo_pairs(&demos(0), path, "fit").is_err());
+        let other = Demos::new("Toy-v0", 3, 1, None);
+        let err = score(&model, &other, path, None).unwrap_err().to_string();
+        assert!(err.contains("the model was fitted on 2 + 1"), "{err}");
+    }
+}
