@@ -212,18 +212,35 @@ pub fn take_trajectories(file: &Path, k: usize) -> Result<Demos> {
     Ok(demos)
 }
 
-/// Writes `demos` to `out`, which must not exist yet.
+/// [`make_demos`] written to `out` (refused before any episode when `out`
+/// exists, see [`write_new`]).
 ///
 /// # Errors
-/// [`Error::Input`] naming `out` when it exists (nothing is written); write
-/// errors.
-pub fn write_new(demos: &Demos, out: &Path) -> Result<()> {
+/// As [`make_demos`] and [`write_new`].
+pub fn make_demos_file(req: &DemoRequest, out: &Path) -> Result<Demos> {
+    refuse_existing(out)?;
+    let demos = make_demos(req)?;
+    write_new(&demos, out)?;
+    Ok(demos)
+}
+
+fn refuse_existing(out: &Path) -> Result<()> {
     if out.exists() {
         return Err(Error::Input {
             path: out.to_path_buf(),
             reason: "exists; choose another --out (nothing was written)".into(),
         });
     }
+    Ok(())
+}
+
+/// Writes `demos` to `out`, which must not exist yet.
+///
+/// # Errors
+/// [`Error::Input`] naming `out` when it exists (nothing is written); write
+/// errors.
+pub fn write_new(demos: &Demos, out: &Path) -> Result<()> {
+    refuse_existing(out)?;
     demos.write(out)?;
     Ok(())
 }
