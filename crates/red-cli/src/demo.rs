@@ -1,4 +1,5 @@
-//! `red-cli demo`: summary of a demonstration file; `red-cli demo import`.
+//! `red-cli demo`: summary of a demonstration file; `red-cli demo import`;
+//! `red-cli demo take`.
 
 use std::path::PathBuf;
 
@@ -21,6 +22,17 @@ pub struct DemoArgs {
 enum DemoCommand {
     /// Convert demonstrations from another format into the project's.
     Import(ImportArgs),
+    /// Keep the first K trajectories of a demo file.
+    Take {
+        /// Trajectories to keep.
+        #[arg(long)]
+        trajectories: usize,
+        /// The demo file.
+        file: PathBuf,
+        /// Where to write them (never overwritten).
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 /// Arguments of `red-cli demo import`.
@@ -50,6 +62,18 @@ struct ImportArgs {
 pub fn run(args: DemoArgs) -> anyhow::Result<()> {
     match (args.command, args.file) {
         (Some(DemoCommand::Import(a)), _) => import(a),
+        (
+            Some(DemoCommand::Take {
+                trajectories,
+                file,
+                out,
+            }),
+            _,
+        ) => {
+            let demos = red_experiments::mujoco::demos::take_trajectories(&file, trajectories)?;
+            red_experiments::mujoco::demos::write_new(&demos, &out)?;
+            summary(&out)
+        }
         (None, Some(file)) => summary(&file),
         (None, None) => anyhow::bail!("give a demo file (`red-cli demo FILE`) or `import`"),
     }

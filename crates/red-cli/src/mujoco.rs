@@ -49,6 +49,9 @@ enum MujocoCommand {
     /// Evaluate a saved policy: deterministic actions (or sampled with
     /// `--stochastic`), true reward, mean and standard deviation of the return.
     Eval(EvalArgs),
+    /// Write a demonstration file from a saved policy: mean or sampled
+    /// actions, stored clipped to the action space or raw.
+    Demos(DemosArgs),
     /// Run a grid of tasks x methods x seeds in parallel and write the
     /// paper's Table 1 (markdown and CSV) and a learning-curve PNG per task.
     Table(TableArgs),
@@ -125,6 +128,34 @@ struct TrainArgs {
     demo: Option<PathBuf>,
     #[command(flatten)]
     common: CommonRunArgs,
+}
+
+#[derive(Debug, Args)]
+struct DemosArgs {
+    /// A policy file of a run (`policy.json`, `best_policy.json`, ...).
+    #[arg(long)]
+    policy: PathBuf,
+    /// The task the policy was trained on.
+    #[arg(long)]
+    env: EnvId,
+    /// Episodes (trajectories) to record.
+    #[arg(long, default_value_t = 4)]
+    episodes: usize,
+    /// Seed of the resets and of the action noise.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Sample the actions from the policy's Gaussian instead of its mean.
+    #[arg(long)]
+    sampled: bool,
+    /// Store the raw actions instead of those clipped to the action space.
+    #[arg(long)]
+    raw_actions: bool,
+    /// Steps per episode at most (default: the task's time limit).
+    #[arg(long)]
+    max_steps: Option<usize>,
+    /// The demo file to write (never overwritten).
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(Debug, Args)]
@@ -305,6 +336,15 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
             start_run(env, method, a.demo, a.common)
         }
         MujocoCommand::Eval(a) => eval(a),
+        MujocoCommand::Demos(a) => {
+            use red_experiments::mujoco::demos::{DemoRequest, make_demos_file};
+            let mut req = DemoRequest::new(a.policy, a.env, a.episodes);
+            (req.seed, req.sampled, req.raw) = (a.seed, a.sampled, a.raw_actions);
+            req.max_steps = a.max_steps;
+            let d = make_demos_file(&req, &a.out)?;
+            println!("{}: {}", a.out.display(), d.summary());
+            Ok(())
+        }
         MujocoCommand::Table(a) => table(a),
     }
 }

@@ -51,9 +51,10 @@ use crate::{Error, Result};
 /// Name written in the `format` field of every demo file.
 pub const FORMAT_NAME: &str = "red-demos";
 /// The version of the format this build writes. Version 2 added the
-/// optional `source` and `scenario` fields; version 1 files (without them)
-/// are read as before.
-pub const FORMAT_VERSION: u32 = 2;
+/// optional `source` and `scenario` fields, version 3 the optional
+/// `made_with`; files of versions 1 and 2 (without them) are read as
+/// before.
+pub const FORMAT_VERSION: u32 = 3;
 /// The oldest version this build reads.
 pub const OLDEST_READABLE_VERSION: u32 = 1;
 
@@ -162,6 +163,14 @@ pub struct Demos {
     /// The environment's crate reads and checks it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scenario: Option<serde_json::Value>,
+    /// How the demonstrations were made, if recorded (version 3): a JSON
+    /// object of the generating command's settings, for example the policy
+    /// file, seed, whether actions were sampled and whether they are stored
+    /// clipped or raw (`red-cli mujoco demos`), or the file and count a
+    /// subset was taken from (`red-cli demo take`). Informational: nothing
+    /// reads it back to change behaviour.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub made_with: Option<serde_json::Value>,
     /// The trajectories.
     pub trajectories: Vec<Trajectory>,
 }
@@ -183,6 +192,7 @@ impl Demos {
             control_hz,
             source: None,
             scenario: None,
+            made_with: None,
             trajectories: Vec::new(),
         }
     }

@@ -189,14 +189,14 @@ fn rewards_of_the_wrong_length() {
 
 #[test]
 fn unknown_version() {
-    let msg = rejected(&with("\"version\": 1", "\"version\": 3"));
-    assert_has(&msg, &["unknown version 3", "reads versions 1 to 2"]);
+    let msg = rejected(&with("\"version\": 1", "\"version\": 4"));
+    assert_has(&msg, &["unknown version 4", "reads versions 1 to 3"]);
     // Checked before the fields, so a newer file's new fields do not hide it.
     let newer = with(
         "\"version\": 1",
-        "\"version\": 3, \"compression\": \"none\"",
+        "\"version\": 4, \"compression\": \"none\"",
     );
-    assert_has(&rejected(&newer), &["unknown version 3"]);
+    assert_has(&rejected(&newer), &["unknown version 4"]);
     assert_has(
         &rejected(&with("\"version\": 1", "\"version\": \"1\"")),
         &["unknown version \"1\""],
@@ -470,4 +470,30 @@ fn version_2_carries_source_and_scenario_and_version_1_still_reads() {
     let text = serde_json::to_string(&d).expect("serialise");
     assert_eq!(Demos::from_json_str(&text).expect("reads"), d);
     assert_has(&rejected(&v2.replace("person", "robot")), &["robot"]);
+}
+
+#[test]
+fn version_3_carries_how_the_demos_were_made_and_older_files_have_none() {
+    let v1 = Demos::from_json_str(BASE).expect("a version 1 file reads");
+    assert_eq!(v1.made_with, None);
+    let v3 = with(
+        "\"version\": 1",
+        "\"version\": 3, \"source\": \"policy\", \"made_with\": {\"seed\": 4, \"stored\": \"raw\"}",
+    );
+    let d = Demos::from_json_str(&v3).expect("a version 3 file reads");
+    assert_eq!(d.source, Some(red_core::DemoSource::Policy));
+    assert_eq!(
+        d.made_with,
+        Some(serde_json::json!({"seed": 4, "stored": "raw"}))
+    );
+    let text = serde_json::to_string(&d).expect("serialise");
+    assert_eq!(Demos::from_json_str(&text).expect("reads"), d);
+    // A version 2 file read by this build gets no `made_with`, and a
+    // version beyond this build's is named as unknown.
+    let v2 = with("\"version\": 1", "\"version\": 2");
+    assert_eq!(Demos::from_json_str(&v2).expect("reads").made_with, None);
+    assert_has(
+        &rejected(&with("\"version\": 1", "\"version\": 4")),
+        &["version 4"],
+    );
 }

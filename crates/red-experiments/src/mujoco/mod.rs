@@ -32,6 +32,7 @@ use std::path::{Path, PathBuf};
 use red_mujoco::EnvId;
 
 pub mod check;
+pub mod demos;
 pub mod run;
 pub mod slurm;
 pub mod table;

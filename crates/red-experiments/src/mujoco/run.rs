@@ -1144,7 +1144,41 @@ fn run_bc(
 /// # Errors
 /// An environment or policy error.
 pub fn record_demos(id: EnvId, policy: &GaussianPolicy, n: usize, seed: u64) -> Result<Demos> {
+    record_demos_with(id, policy, n, seed, &RecordOptions::default())
+}
+
+/// How [`record_demos_with`] acts and what it stores. The default is what
+/// an `expert` run writes: mean actions, stored clipped, episodes to the
+/// task's time limit.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RecordOptions {
+    /// Actions sampled from the policy's Gaussian (noise from the stream
+    /// `Exploration` of `seed`) instead of its mean.
+    pub sampled: bool,
+    /// Store the raw action (the network's output, or the sample) instead
+    /// of the action clipped to the action space. The environment always
+    /// receives the clipped one.
+    pub raw: bool,
+    /// Cut each episode after this many steps (ended `truncated`).
+    pub max_steps: Option<usize>,
+}
+
+/// As [`record_demos`], with the choices of `opts`.
+///
+/// # Errors
+/// An environment or policy error.
+pub fn record_demos_with(
+    id: EnvId,
+    policy: &GaussianPolicy,
+    n: usize,
+    seed: u64,
+    opts: &RecordOptions,
+) -> Result<Demos> {
     let mut env = WatchedEnv::new(id)?;
+    let mut noise = opts
+        .sampled
+        .then(|| ChaCha8Rng::seed_from_u64(Seeder::new(seed).derive(Stream::Exploration)));
+    let mut ws = red_rl::policy::PolicyWorkspace::default();
     let (low, high) = match env.action_space() {
         Space::Box(b) => (b.low.clone(), b.high.clone()),
         Space::Discrete(_) => {
@@ -1166,14 +1200,22 @@ pub fn record_demos(id: EnvId, policy: &GaussianPolicy, n: usize, seed: u64) -> 
     for _ in 0..n {
         let s: u64 = rand::RngExt::random(&mut rng);
         let (obs, _) = env.reset(Some(s))?;
+        let mut raws = Vec::new();
         let act = |_: &WatchedEnv, obs: &[f64]| {
-            let mut a = policy.act_deterministic(obs)?;
+            let mut raw = vec![0.0; low.len()];
+            policy.act_into(obs, noise.as_mut(), &mut ws, &mut raw)?;
+            let mut a = raw.clone();
             for j in 0..a.len() {
                 a[j] = a[j].clamp(low[j], high[j]);
             }
+            raws.push(raw);
             Ok::<_, Error>(a)
         };
-        let (trajectory, _) = record_episode(&mut env, obs, None, act, |_, _| Ok(()))?;
+        let (mut trajectory, _) =
+            record_episode(&mut env, obs, opts.max_steps, act, |_, _| Ok(()))?;
+        if opts.raw {
+            trajectory.actions = raws;
+        }
         demos.trajectories.push(trajectory);
     }
     demos.validate()?;
