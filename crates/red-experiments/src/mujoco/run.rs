@@ -715,6 +715,87 @@ impl Start {
     }
 }
 
+/// The command line's settings of an `expert` or `train` run: each `None`
+/// keeps the value of the `config` file or the task's default.
+#[derive(Debug, Clone, Default)]
+pub struct RunFlags {
+    /// Environment steps of TRPO.
+    pub steps: Option<u64>,
+    /// Seed of every random stream of the run.
+    pub seed: u64,
+    /// Run name (default: [`super::default_run_name`]).
+    pub name: Option<String>,
+    /// Folder of the runs.
+    pub out_dir: PathBuf,
+    /// Continue the run in this folder (its `config.json` holds the
+    /// settings; only `steps` changes them).
+    pub resume: Option<PathBuf>,
+    /// Move a folder that holds a run aside first.
+    pub force: bool,
+    /// A settings file and its text (the fields of `config.json`).
+    pub config: Option<(PathBuf, String)>,
+    /// TRPO iterations between checkpoints.
+    pub checkpoint_every: Option<u64>,
+    /// Evaluation episodes.
+    pub eval_episodes: Option<usize>,
+    /// A fixed sigma1.
+    pub sigma1: Option<f64>,
+    /// The RED release's hand-set sigma1 of the task and method.
+    pub release_sigma1: bool,
+    /// Demonstration file (default: [`super::default_demo`] in `out_dir`).
+    pub demo: Option<PathBuf>,
+}
+
+impl RunFlags {
+    /// The settings of a new run of `method` on `env`: the task's defaults,
+    /// then the `config` file, then the other flags; validated.
+    ///
+    /// # Errors
+    /// A `config` file that cannot be used, or invalid settings.
+    pub fn config(&self, env: EnvId, method: Method) -> Result<RunConfig> {
+        let mut cfg = RunConfig::for_task(env, method);
+        if let Some((path, text)) = &self.config {
+            // Fields missing from the file keep the task's defaults.
+            cfg = cfg.with_overrides(text, path)?;
+        }
+        cfg.seed = self.seed;
+        cfg.steps = self.steps.unwrap_or(cfg.steps);
+        cfg.checkpoint_every = self.checkpoint_every.unwrap_or(cfg.checkpoint_every);
+        cfg.eval_episodes = self.eval_episodes.unwrap_or(cfg.eval_episodes);
+        if let Some(s) = self.sigma1 {
+            cfg.sigma1 = Sigma1::Fixed(s);
+        }
+        if self.release_sigma1 {
+            cfg.sigma1 = Sigma1::Fixed(RunConfig::release_sigma1(env, method));
+        }
+        if method.needs_demo() {
+            let demo = self.demo.clone();
+            cfg.demo = Some(demo.unwrap_or_else(|| super::default_demo(&self.out_dir, env)));
+        }
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// The run's folder, settings and start: with `resume`, the folder's
+    /// `config.json` (with `steps` when given); otherwise a new run of
+    /// `method` on `env` ([`RunFlags::config`]) in `out_dir/name`.
+    ///
+    /// # Errors
+    /// As [`read_config`] and [`RunFlags::config`]; an invalid name.
+    pub fn prepare(&self, env: EnvId, method: Method) -> Result<(PathBuf, RunConfig, Start)> {
+        if let Some(dir) = &self.resume {
+            let mut cfg = read_config(dir)?;
+            cfg.steps = self.steps.unwrap_or(cfg.steps);
+            return Ok((dir.clone(), cfg, Start::Resume));
+        }
+        let cfg = self.config(env, method)?;
+        let name = self.name.clone();
+        let name = name.unwrap_or_else(|| super::default_run_name(env, method, cfg.seed));
+        let dir = crate::run_dir::path_in(&self.out_dir, &name)?;
+        Ok((dir, cfg, Start::from_flags(false, self.force)))
+    }
+}
+
 /// [`run_with`] with [`Start::Resume`] when `resume`, else [`Start::New`].
 ///
 /// # Errors
