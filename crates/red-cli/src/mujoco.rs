@@ -406,14 +406,7 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
             multi: MultiProgress::new(),
         };
         let outcome = table::run_grid(&cfg, interrupt::flag(), &bars)?;
-        for f in &outcome.failures {
-            eprintln!("failed: {f}");
-        }
-        if outcome.interrupted {
-            eprintln!(
-                "interrupted: the runs saved checkpoints; rerun the same command to continue"
-            );
-        }
+        eprint!("{}", outcome.notes());
     }
     let report = table::write_report(&cfg)?;
     println!("{}", report.markdown);

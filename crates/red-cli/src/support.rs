@@ -9,7 +9,6 @@ use red_core::Demos;
 use red_experiments::{Progress, support};
 
 use crate::progress::Bar;
-use red_support::stats::summary_line;
 use red_support::{FitProgress, FittedEstimator};
 
 /// Arguments of `red-cli support`.
@@ -99,14 +98,10 @@ fn fit(args: FitArgs) -> anyhow::Result<()> {
         json.as_deref(),
         args.epochs,
     )?;
+    let n = pairs.0.nrows();
     println!(
-        "fitting {} on {} pairs ({} state + {} action numbers) from {}, seed {}",
-        cfg.kind(),
-        pairs.0.nrows(),
-        demos.obs_dim,
-        demos.act_dim,
-        args.demo.display(),
-        args.seed
+        "{}",
+        support::fit_line(&cfg, n, &demos, &args.demo, args.seed)
     );
     let mut bar = Bar::new(false, None);
     bar.start("fit", 0, 0);
@@ -130,16 +125,6 @@ fn score(args: ScoreArgs) -> anyhow::Result<()> {
     let demos =
         Demos::read(&args.demo).with_context(|| format!("reading {}", args.demo.display()))?;
     let r = support::score(&model, &demos, &args.demo, args.sigma1)?;
-    println!(
-        "{} model {} on {} pairs of {}",
-        model.kind(),
-        args.model.display(),
-        r.scores.len(),
-        args.demo.display()
-    );
-    println!("{}", summary_line("score L", &r.scores));
-    println!("sigma1 = {:.6e} ({})", r.sigma1, r.rule);
-    println!("{}", summary_line("reward r", &r.rewards));
-    println!("share of pairs with reward >= 0.9: {:.3}", r.share_high);
+    print!("{}", r.summary(&model, &args.model, &args.demo));
     Ok(())
 }

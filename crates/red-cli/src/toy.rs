@@ -123,27 +123,11 @@ pub fn run(args: ToyArgs) -> anyhow::Result<()> {
             (outcome.map_err(crate::flag_error)?, out)
         }
     };
-    match outcome {
-        ToyOutcome::Finished(report) => {
-            println!("{}", report.table);
-            println!(
-                "wrote {} ({:.1} s)",
-                report.out.display(),
-                report.wall_time_s
-            );
-            Ok(())
-        }
-        ToyOutcome::Stopped {
-            checkpoint,
-            saved,
-            total,
-        } => {
-            eprintln!(
-                "interrupted: {saved} of {total} runs are saved in {}; continue with `red-cli toy --resume {}`",
-                checkpoint.display(),
-                out.display()
-            );
-            std::process::exit(130);
-        }
+    let message = outcome.message(&out);
+    if let ToyOutcome::Stopped { .. } = outcome {
+        eprint!("{message}");
+        std::process::exit(130);
     }
+    print!("{message}");
+    Ok(())
 }

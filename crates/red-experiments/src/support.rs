@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use ndarray::Array2;
 use red_core::{Demos, Seeder, Stream};
+use red_support::stats::summary_line;
 use red_support::{
     EstimatorConfig, FitProgress, FittedEstimator, RedRewardConfig, Sigma1, SupportEstimatorConfig,
     SupportModel,
@@ -51,6 +52,24 @@ pub fn demo_pairs(demos: &Demos, path: &Path, what: &str) -> Result<(Array2<f64>
     Ok((s, a))
 }
 
+/// The line that announces a fit of `cfg` on `pairs` pairs of `demos`
+/// (read from `path`) with `seed`.
+pub fn fit_line(
+    cfg: &EstimatorConfig,
+    pairs: usize,
+    demos: &Demos,
+    path: &Path,
+    seed: u64,
+) -> String {
+    format!(
+        "fitting {} on {pairs} pairs ({} state + {} action numbers) from {}, seed {seed}",
+        cfg.kind(),
+        demos.obs_dim,
+        demos.act_dim,
+        path.display()
+    )
+}
+
 /// Fits `cfg` on the pairs `(s, a)` with the estimator stream of `seed`;
 /// returns the model and the seconds the fit took.
 ///
@@ -81,6 +100,28 @@ pub struct ScoreReport {
     pub rewards: Vec<f64>,
     /// Share of the pairs with reward at least 0.9.
     pub share_high: f64,
+}
+
+impl ScoreReport {
+    /// The report as `red-cli support score` prints it: what was scored
+    /// (`model` read from `model_path`, the pairs of `demo_path`), the
+    /// score statistics, `σ1` and its rule, the reward statistics and the
+    /// share of high rewards; one line each, each ending with a newline.
+    pub fn summary(&self, model: &FittedEstimator, model_path: &Path, demo_path: &Path) -> String {
+        format!(
+            "{} model {} on {} pairs of {}\n{}\nsigma1 = {:.6e} ({})\n{}\n\
+             share of pairs with reward >= 0.9: {:.3}\n",
+            model.kind(),
+            model_path.display(),
+            self.scores.len(),
+            demo_path.display(),
+            summary_line("score L", &self.scores),
+            self.sigma1,
+            self.rule,
+            summary_line("reward r", &self.rewards),
+            self.share_high
+        )
+    }
 }
 
 /// Scores the pairs of `demos` (read from `path`) with `model`; `σ1` is

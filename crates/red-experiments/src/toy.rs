@@ -439,6 +439,31 @@ pub struct ToyReport {
     pub wall_time_s: f64,
 }
 
+impl ToyOutcome {
+    /// What to tell the user: for a finished run the tables and where they
+    /// were written; for a stopped one in `dir`, what is saved and the
+    /// command that continues it. Each ends with a newline.
+    pub fn message(&self, dir: &Path) -> String {
+        match self {
+            Self::Finished(r) => format!(
+                "{}\nwrote {} ({:.1} s)\n",
+                r.table,
+                r.out.display(),
+                r.wall_time_s
+            ),
+            Self::Stopped {
+                checkpoint,
+                saved,
+                total,
+            } => format!(
+                "interrupted: {saved} of {total} runs are saved in {}; continue with `red-cli toy --resume {}`\n",
+                checkpoint.display(),
+                dir.display()
+            ),
+        }
+    }
+}
+
 /// Runs the experiment of `config` into the new run folder `dir` (see
 /// [`RunDir::create_with`]) on `threads` worker threads.
 ///

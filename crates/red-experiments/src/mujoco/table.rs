@@ -157,6 +157,22 @@ pub struct GridOutcome {
     pub interrupted: bool,
 }
 
+impl GridOutcome {
+    /// What the user should know: one `failed: ...` line per failed cell,
+    /// and how to continue an interrupted grid; each ends with a newline.
+    pub fn notes(&self) -> String {
+        let mut text: String = self
+            .failures
+            .iter()
+            .map(|f| format!("failed: {f}\n"))
+            .collect();
+        if self.interrupted {
+            text += "interrupted: the runs saved checkpoints; rerun the same command to continue\n";
+        }
+        text
+    }
+}
+
 /// One cell of the grid: a task, a method, a seed and its run folder.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct GridCell {
