@@ -14,7 +14,7 @@ use anyhow::Context;
 use clap::{Args, Subcommand};
 use indicatif::MultiProgress;
 use red_experiments::Progress;
-use red_experiments::mujoco::check::{EnvCheck, check_env};
+use red_experiments::mujoco::check::{EnvCheck, assets_line, check_env};
 use red_experiments::mujoco::run::{self, Outcome, PolicyEval, RunFlags};
 use red_experiments::mujoco::slurm::{self, SlurmConfig};
 use red_experiments::mujoco::table::{self, GridProgress, TableConfig};
@@ -409,12 +409,7 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
         eprint!("{}", outcome.notes());
     }
     let report = table::write_report(&cfg)?;
-    println!("{}", report.markdown);
-    println!(
-        "({:.0} s; table, CSV and curves in {})",
-        started.elapsed().as_secs_f64(),
-        cfg.root().display()
-    );
+    print!("{}", report.summary(&cfg, started.elapsed().as_secs_f64()));
     if args.report_only {
         print!("{}", slurm::missing_report(&cfg));
         if args.slurm.resubmit_missing {
@@ -425,16 +420,19 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
 }
 
 fn eval(args: EvalArgs) -> anyhow::Result<()> {
-    let env = args.env;
-    let (report, warnings) =
-        run::evaluate_file(&args.policy, env, args.episodes, args.seed, args.stochastic)?;
-    let e = PolicyEval::new(&args.policy, env, args.seed, args.stochastic, &report);
+    let (e, warnings) = PolicyEval::of_file(
+        &args.policy,
+        args.env,
+        args.episodes,
+        args.seed,
+        args.stochastic,
+    )?;
     print!("{}", e.summary());
     if warnings > 0 {
         println!("MuJoCo warnings during the evaluation: {warnings}");
     }
     if let Some(out) = &args.out {
-        red_core::checkpoint::write_atomic(out, serde_json::to_string_pretty(&e)?.as_bytes())?;
+        e.write(out)?;
     }
     Ok(())
 }
@@ -446,10 +444,7 @@ fn check(args: CheckArgs) -> anyhow::Result<()> {
         args.envs
     };
     anyhow::ensure!(args.steps > 0, "--steps must be at least 1");
-    match red_mujoco::assets::assets_dir() {
-        Some((dir, source)) => println!("model files: {} ({source})", dir.display()),
-        None => println!("model files: no folder configured"),
-    }
+    println!("{}", assets_line());
     println!("{}", EnvCheck::HEADER);
     for id in ids {
         println!("{}", check_env(id, args.steps, args.seed)?.row());

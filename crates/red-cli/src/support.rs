@@ -6,10 +6,10 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::{Args, Subcommand, ValueEnum};
 use red_core::Demos;
-use red_experiments::{Progress, support};
+use red_experiments::support;
 
 use crate::progress::Bar;
-use red_support::{FitProgress, FittedEstimator};
+use red_support::FittedEstimator;
 
 /// Arguments of `red-cli support`.
 #[derive(Debug, Args)]
@@ -103,15 +103,8 @@ fn fit(args: FitArgs) -> anyhow::Result<()> {
         "{}",
         support::fit_line(&cfg, n, &demos, &args.demo, args.seed)
     );
-    let mut bar = Bar::new(false, None);
-    bar.start("fit", 0, 0);
-    let mut on_progress = |p: FitProgress| {
-        let loss = p.loss.map_or(String::new(), |l| format!("loss {l:.3e}"));
-        bar.start_total(p.total as u64);
-        bar.advance(p.done as u64, &loss);
-    };
-    let (model, secs) = support::fit(&cfg, &pairs, args.seed, &mut on_progress)?;
-    bar.finish();
+    // The fit finishes the bar before the lines below.
+    let (model, secs) = support::fit(&cfg, &pairs, args.seed, &mut Bar::new(false, None))?;
     model
         .save(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;

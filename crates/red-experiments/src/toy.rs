@@ -419,6 +419,8 @@ pub enum ToyOutcome {
     /// The stop flag was raised: `saved` of `total` runs are in the
     /// checkpoint.
     Stopped {
+        /// The run folder.
+        dir: PathBuf,
         /// The checkpoint.
         checkpoint: PathBuf,
         /// Runs saved.
@@ -441,9 +443,9 @@ pub struct ToyReport {
 
 impl ToyOutcome {
     /// What to tell the user: for a finished run the tables and where they
-    /// were written; for a stopped one in `dir`, what is saved and the
-    /// command that continues it. Each ends with a newline.
-    pub fn message(&self, dir: &Path) -> String {
+    /// were written; for a stopped one, what is saved and the command
+    /// that continues it. Each ends with a newline.
+    pub fn message(&self) -> String {
         match self {
             Self::Finished(r) => format!(
                 "{}\nwrote {} ({:.1} s)\n",
@@ -452,6 +454,7 @@ impl ToyOutcome {
                 r.wall_time_s
             ),
             Self::Stopped {
+                dir,
                 checkpoint,
                 saved,
                 total,
@@ -645,6 +648,7 @@ fn run_grid(
     }
     if saved < jobs.len() {
         return Ok(ToyOutcome::Stopped {
+            dir: dir.path().to_path_buf(),
             checkpoint: checkpoint_path,
             saved,
             total: jobs.len(),

@@ -1342,6 +1342,35 @@ impl PolicyEval {
     }
 }
 
+impl PolicyEval {
+    /// [`evaluate_file`] as a [`PolicyEval`], with the MuJoCo warnings seen.
+    ///
+    /// # Errors
+    /// As [`evaluate_file`].
+    pub fn of_file(
+        path: &Path,
+        id: EnvId,
+        episodes: usize,
+        seed: u64,
+        sampled: bool,
+    ) -> Result<(Self, u64)> {
+        let (report, warnings) = evaluate_file(path, id, episodes, seed, sampled)?;
+        Ok((Self::new(path, id, seed, sampled, &report), warnings))
+    }
+
+    /// Writes the evaluation as JSON to `out` (atomically).
+    ///
+    /// # Errors
+    /// A file that cannot be written.
+    pub fn write(&self, out: &Path) -> Result<()> {
+        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Input {
+            path: out.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        Ok(write_atomic(out, text.as_bytes())?)
+    }
+}
+
 /// Runs the policy file `path` on `id` for `episodes` episodes with the
 /// true reward: deterministic (mean) actions, or actions sampled from the
 /// policy's Gaussian when `sampled`.
@@ -1380,6 +1409,65 @@ pub fn evaluate_file(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn flags_override_the_task_defaults_and_name_the_folder() {
+        let out = PathBuf::from("runs");
+        let flags = RunFlags {
+            out_dir: out.clone(),
+            seed: 3,
+            ..RunFlags::default()
+        };
+        let cfg = flags.config(EnvId::Hopper, Method::Red).unwrap();
+        let mut want = RunConfig::for_task(EnvId::Hopper, Method::Red);
+        want.seed = 3;
+        want.demo = Some(super::super::default_demo(&out, EnvId::Hopper));
+        assert_eq!(cfg, want);
+        let (dir, _, start) = flags.prepare(EnvId::Hopper, Method::Red).unwrap();
+        assert_eq!(dir, out.join("hopper-red-s3"));
+        assert_eq!(start, Start::New);
+        let flags = RunFlags {
+            steps: Some(1234),
+            checkpoint_every: Some(2),
+            eval_episodes: Some(4),
+            sigma1: Some(0.5),
+            force: true,
+            config: Some(("c.json".into(), r#"{"best_window": 7}"#.into())),
+            ..flags
+        };
+        let (dir, cfg, start) = flags.prepare(EnvId::Hopper, Method::Expert).unwrap();
+        assert_eq!(dir, out.join("expert-hopper"));
+        assert_eq!(start, Start::Force);
+        assert_eq!(
+            (cfg.steps, cfg.checkpoint_every, cfg.eval_episodes),
+            (1234, 2, 4)
+        );
+        assert_eq!(
+            (cfg.sigma1, cfg.best_window, cfg.demo),
+            (Sigma1::Fixed(0.5), 7, None)
+        );
+        let release = RunFlags {
+            release_sigma1: true,
+            ..flags.clone()
+        };
+        let cfg = release.config(EnvId::Ant, Method::Red).unwrap();
+        let want = Sigma1::Fixed(RunConfig::release_sigma1(EnvId::Ant, Method::Red));
+        assert_eq!(cfg.sigma1, want);
+        let bad = RunFlags {
+            config: Some(("c.json".into(), r#"{"nope": 1}"#.into())),
+            ..flags.clone()
+        };
+        assert!(bad.config(EnvId::Hopper, Method::Red).is_err());
+        let missing = RunFlags {
+            resume: Some("no/such/run".into()),
+            ..flags
+        };
+        let err = missing.prepare(EnvId::Hopper, Method::Red).unwrap_err();
+        assert!(
+            err.to_string().contains("is no/such/run a run folder"),
+            "{err}"
+        );
+    }
 
     #[test]
     fn metrics_numbers_are_short_and_read_back() {
