@@ -18,10 +18,7 @@ pub struct DoctorArgs {
 pub fn run(args: DoctorArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.steps > 0, "--steps: must be at least 1");
     println!("red-cli {}", env!("CARGO_PKG_VERSION"));
-    println!(
-        "threads available: {}",
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    );
+    println!("threads available: {}", red_experiments::cores());
     let report = red_experiments::doctor::check_install(args.steps);
     for line in &report.lines {
         println!("{line}");

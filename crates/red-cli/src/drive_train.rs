@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
-use red_experiments::drive::{self, DriveOutcome, DriveRunConfig, DriveTrainConfig};
+use red_experiments::drive::{self, DriveFlags, DriveOutcome, DriveRunConfig};
 
 use crate::interrupt;
 use crate::progress::Bar;
@@ -91,29 +91,18 @@ fn run_config(args: &TrainArgs) -> anyhow::Result<(DriveRunConfig, red_core::Dem
     if let Some(n) = note {
         eprintln!("note: {n}");
     }
-    let mut train: DriveTrainConfig =
-        crate::read_json(args.train_config.as_deref(), "the training config")?;
-    if let Some(s) = args.steps {
-        train.steps = s;
-    }
-    if let Some(e) = args.rnd_epochs {
-        train.rnd.epochs = e;
-        train.autoencoder.epochs = e;
-    }
-    if let Some(e) = args.bc_epochs {
-        train.bc.epochs = e;
-    }
-    if let Some(c) = args.checkpoint_every {
-        train.checkpoint_every = c;
-    }
-    let mut config = DriveRunConfig::new(demo.display().to_string(), road);
-    config.methods = drive::parse_methods(&args.methods)?;
-    config.seed = args.seed;
-    config.eval_runs = args.eval_runs;
-    config.eval_roads = args.eval_roads;
-    config.train = train;
-    config.validate()?;
-    Ok((config, demos))
+    let flags = DriveFlags {
+        methods: args.methods.clone(),
+        seed: args.seed,
+        eval_runs: args.eval_runs,
+        eval_roads: args.eval_roads,
+        train_config: args.train_config.clone(),
+        steps: args.steps,
+        rnd_epochs: args.rnd_epochs,
+        bc_epochs: args.bc_epochs,
+        checkpoint_every: args.checkpoint_every,
+    };
+    Ok((flags.config(&demo, road)?, demos))
 }
 
 /// Runs `red-cli drive --demo FILE` (or `--resume DIR`).
@@ -136,29 +125,12 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
             )
         }
     };
-    match outcome {
-        DriveOutcome::Finished(report) => {
-            print!("{}", report.table());
-            Ok(())
-        }
-        DriveOutcome::Stopped {
-            checkpoint,
-            method,
-            env_steps,
-        } => {
-            if method.is_empty() {
-                eprintln!(
-                    "interrupted between methods; checkpoint saved to {}",
-                    checkpoint.display()
-                );
-            } else {
-                eprintln!(
-                    "interrupted at step {env_steps} of {method}; checkpoint saved to {}",
-                    checkpoint.display()
-                );
-            }
-            eprintln!("resume with: red-cli drive --resume {}", out.display());
-            std::process::exit(130);
-        }
+    if let Some(note) = outcome.stop_note(&out) {
+        eprint!("{note}");
+        std::process::exit(130);
     }
+    if let DriveOutcome::Finished(report) = outcome {
+        print!("{}", report.table());
+    }
+    Ok(())
 }

@@ -14,12 +14,11 @@ use anyhow::Context;
 use clap::{Args, Subcommand};
 use indicatif::MultiProgress;
 use red_experiments::Progress;
-use red_experiments::mujoco::check::{EnvCheck, check_env};
-use red_experiments::mujoco::run::{self, Outcome, PolicyEval, RunConfig};
+use red_experiments::mujoco::check::{EnvCheck, assets_line, check_env};
+use red_experiments::mujoco::run::{self, Outcome, PolicyEval, RunFlags};
 use red_experiments::mujoco::slurm::{self, SlurmConfig};
 use red_experiments::mujoco::table::{self, GridProgress, TableConfig};
-use red_experiments::mujoco::{Method, default_demo, default_run_name, short_name};
-use red_experiments::run_dir;
+use red_experiments::mujoco::{Method, short_name};
 use red_mujoco::EnvId;
 
 use crate::interrupt;
@@ -349,41 +348,25 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
     }
 }
 
-/// The settings of a new run from the task's defaults, a `--config` file
-/// and the command line.
-fn build_config(
-    env: EnvId,
-    method: Method,
-    demo: Option<PathBuf>,
-    common: &CommonRunArgs,
-) -> anyhow::Result<RunConfig> {
-    let mut cfg = RunConfig::for_task(env, method);
-    if let Some(path) = &common.config {
-        let text = crate::read_text(Some(path))?.unwrap_or_default();
-        // Fields missing from the file keep the task's defaults.
-        cfg = cfg.with_overrides(&text, path)?;
+impl CommonRunArgs {
+    /// The library's flags of the run (reads the `--config` file).
+    fn flags(self, demo: Option<PathBuf>) -> anyhow::Result<RunFlags> {
+        let text = crate::read_text(self.config.as_deref())?;
+        Ok(RunFlags {
+            steps: self.steps,
+            seed: self.seed,
+            name: self.name,
+            out_dir: self.out_dir,
+            resume: self.resume,
+            force: self.force,
+            config: self.config.zip(text),
+            checkpoint_every: self.checkpoint_every,
+            eval_episodes: self.eval_episodes,
+            sigma1: self.sigma1,
+            release_sigma1: self.release_sigma1,
+            demo,
+        })
     }
-    cfg.seed = common.seed;
-    if let Some(s) = common.steps {
-        cfg.steps = s;
-    }
-    if let Some(c) = common.checkpoint_every {
-        cfg.checkpoint_every = c;
-    }
-    if let Some(e) = common.eval_episodes {
-        cfg.eval_episodes = e;
-    }
-    if let Some(s) = common.sigma1 {
-        cfg.sigma1 = red_support::Sigma1::Fixed(s);
-    }
-    if common.release_sigma1 {
-        cfg.sigma1 = red_support::Sigma1::Fixed(RunConfig::release_sigma1(env, method));
-    }
-    if method.needs_demo() {
-        cfg.demo = Some(demo.unwrap_or_else(|| default_demo(&common.out_dir, env)));
-    }
-    cfg.validate()?;
-    Ok(cfg)
 }
 
 fn start_run(
@@ -393,31 +376,11 @@ fn start_run(
     common: CommonRunArgs,
 ) -> anyhow::Result<()> {
     interrupt::install();
-    let (dir, cfg, resume) = match &common.resume {
-        Some(dir) => {
-            let mut cfg = run::read_config(dir)?;
-            if let Some(s) = common.steps {
-                cfg.steps = s;
-            }
-            (dir.clone(), cfg, true)
-        }
-        None => {
-            let cfg = build_config(env, method, demo, &common)?;
-            let name = common
-                .name
-                .clone()
-                .unwrap_or_else(|| default_run_name(env, method, cfg.seed));
-            (run_dir::path_in(&common.out_dir, &name)?, cfg, false)
-        }
-    };
-    let mut bar = Bar::labelled(
-        format!("{} {}", short_name(cfg.env), cfg.method.name()),
-        None,
-    );
-    bar.stop_at = common
-        .stop_after_iterations
-        .map(|k| k * cfg.trpo.steps_per_batch as u64);
-    let start = run::Start::from_flags(resume, common.force);
+    let stop_after = common.stop_after_iterations;
+    let (dir, cfg, start) = common.flags(demo)?.prepare(env, method)?;
+    let label = format!("{} {}", short_name(cfg.env), cfg.method.name());
+    let mut bar = Bar::labelled(label, None);
+    bar.stop_at = stop_after.map(|k| k * cfg.trpo.steps_per_batch as u64);
     let outcome = run::run_with(&dir, Some(cfg), start, interrupt::flag(), &mut bar)?;
     drop(bar);
     if outcome == Outcome::Interrupted {
@@ -483,22 +446,10 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
             multi: MultiProgress::new(),
         };
         let outcome = table::run_grid(&cfg, interrupt::flag(), &bars)?;
-        for f in &outcome.failures {
-            eprintln!("failed: {f}");
-        }
-        if outcome.interrupted {
-            eprintln!(
-                "interrupted: the runs saved checkpoints; rerun the same command to continue"
-            );
-        }
+        eprint!("{}", outcome.notes());
     }
     let report = table::write_report(&cfg)?;
-    println!("{}", report.markdown);
-    println!(
-        "({:.0} s; table, CSV and curves in {})",
-        started.elapsed().as_secs_f64(),
-        cfg.root().display()
-    );
+    print!("{}", report.summary(&cfg, started.elapsed().as_secs_f64()));
     if args.report_only {
         print!("{}", slurm::missing_report(&cfg));
         if args.slurm.resubmit_missing {
@@ -509,16 +460,19 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
 }
 
 fn eval(args: EvalArgs) -> anyhow::Result<()> {
-    let env = args.env;
-    let (report, warnings) =
-        run::evaluate_file(&args.policy, env, args.episodes, args.seed, args.stochastic)?;
-    let e = PolicyEval::new(&args.policy, env, args.seed, args.stochastic, &report);
+    let (e, warnings) = PolicyEval::of_file(
+        &args.policy,
+        args.env,
+        args.episodes,
+        args.seed,
+        args.stochastic,
+    )?;
     print!("{}", e.summary());
     if warnings > 0 {
         println!("MuJoCo warnings during the evaluation: {warnings}");
     }
     if let Some(out) = &args.out {
-        red_core::checkpoint::write_atomic(out, serde_json::to_string_pretty(&e)?.as_bytes())?;
+        e.write(out)?;
     }
     Ok(())
 }
@@ -530,10 +484,7 @@ fn check(args: CheckArgs) -> anyhow::Result<()> {
         args.envs
     };
     anyhow::ensure!(args.steps > 0, "--steps must be at least 1");
-    match red_mujoco::assets::assets_dir() {
-        Some((dir, source)) => println!("model files: {} ({source})", dir.display()),
-        None => println!("model files: no folder configured"),
-    }
+    println!("{}", assets_line());
     println!("{}", EnvCheck::HEADER);
     for id in ids {
         println!("{}", check_env(id, args.steps, args.seed)?.row());

@@ -44,13 +44,6 @@ impl Bar {
         bar.multi = multi.cloned();
         bar
     }
-
-    /// Sets the current phase's total units of work.
-    pub fn start_total(&self, total: u64) {
-        if let Some(b) = &self.bar {
-            b.set_length(total);
-        }
-    }
 }
 
 impl Progress for Bar {

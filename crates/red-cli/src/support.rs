@@ -6,11 +6,10 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::{Args, Subcommand, ValueEnum};
 use red_core::Demos;
-use red_experiments::{Progress, support};
+use red_experiments::support;
 
 use crate::progress::Bar;
-use red_support::stats::summary_line;
-use red_support::{FitProgress, FittedEstimator};
+use red_support::FittedEstimator;
 
 /// Arguments of `red-cli support`.
 #[derive(Debug, Args)]
@@ -99,24 +98,13 @@ fn fit(args: FitArgs) -> anyhow::Result<()> {
         json.as_deref(),
         args.epochs,
     )?;
+    let n = pairs.0.nrows();
     println!(
-        "fitting {} on {} pairs ({} state + {} action numbers) from {}, seed {}",
-        cfg.kind(),
-        pairs.0.nrows(),
-        demos.obs_dim,
-        demos.act_dim,
-        args.demo.display(),
-        args.seed
+        "{}",
+        support::fit_line(&cfg, n, &demos, &args.demo, args.seed)
     );
-    let mut bar = Bar::new(false, None);
-    bar.start("fit", 0, 0);
-    let mut on_progress = |p: FitProgress| {
-        let loss = p.loss.map_or(String::new(), |l| format!("loss {l:.3e}"));
-        bar.start_total(p.total as u64);
-        bar.advance(p.done as u64, &loss);
-    };
-    let (model, secs) = support::fit(&cfg, &pairs, args.seed, &mut on_progress)?;
-    bar.finish();
+    // The fit finishes the bar before the lines below.
+    let (model, secs) = support::fit(&cfg, &pairs, args.seed, &mut Bar::new(false, None))?;
     model
         .save(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
@@ -130,16 +118,6 @@ fn score(args: ScoreArgs) -> anyhow::Result<()> {
     let demos =
         Demos::read(&args.demo).with_context(|| format!("reading {}", args.demo.display()))?;
     let r = support::score(&model, &demos, &args.demo, args.sigma1)?;
-    println!(
-        "{} model {} on {} pairs of {}",
-        model.kind(),
-        args.model.display(),
-        r.scores.len(),
-        args.demo.display()
-    );
-    println!("{}", summary_line("score L", &r.scores));
-    println!("sigma1 = {:.6e} ({})", r.sigma1, r.rule);
-    println!("{}", summary_line("reward r", &r.rewards));
-    println!("share of pairs with reward >= 0.9: {:.3}", r.share_high);
+    print!("{}", r.summary(&model, &args.model, &args.demo));
     Ok(())
 }

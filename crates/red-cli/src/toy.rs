@@ -104,46 +104,24 @@ impl ToyArgs {
 /// Runs `red-cli toy`.
 pub fn run(args: ToyArgs) -> anyhow::Result<()> {
     interrupt::install();
-    let threads = args
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let threads = args.threads.unwrap_or_else(red_experiments::cores);
     let mut bar = Bar::new(args.quiet, None);
-    let (outcome, out) = match &args.resume {
-        Some(dir) => (
-            toy::resume(dir, threads, interrupt::flag(), &mut bar)?,
-            dir.clone(),
-        ),
+    let outcome = match &args.resume {
+        Some(dir) => toy::resume(dir, threads, interrupt::flag(), &mut bar)?,
         None => {
             let config = args.config();
             config.validate().map_err(crate::flag_error)?;
             let force = args.force.into();
             let dir = red_experiments::RunDir::create_with(&args.runs_dir, &args.name, force)?;
-            let out = dir.path().to_path_buf();
             let outcome = toy::run_new(config, dir, threads, interrupt::flag(), &mut bar);
-            (outcome.map_err(crate::flag_error)?, out)
+            outcome.map_err(crate::flag_error)?
         }
     };
-    match outcome {
-        ToyOutcome::Finished(report) => {
-            println!("{}", report.table);
-            println!(
-                "wrote {} ({:.1} s)",
-                report.out.display(),
-                report.wall_time_s
-            );
-            Ok(())
-        }
-        ToyOutcome::Stopped {
-            checkpoint,
-            saved,
-            total,
-        } => {
-            eprintln!(
-                "interrupted: {saved} of {total} runs are saved in {}; continue with `red-cli toy --resume {}`",
-                checkpoint.display(),
-                out.display()
-            );
-            std::process::exit(130);
-        }
+    let message = outcome.message();
+    if let ToyOutcome::Stopped { .. } = outcome {
+        eprint!("{message}");
+        std::process::exit(130);
     }
+    print!("{message}");
+    Ok(())
 }

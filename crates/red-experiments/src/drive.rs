@@ -473,6 +473,61 @@ impl DriveRunConfig {
     }
 }
 
+/// The command line's settings of a new run: the training config's file
+/// and the values that overwrite its fields (`None`: keep them).
+#[derive(Debug, Clone, Default)]
+pub struct DriveFlags {
+    /// Methods, or `all` (see [`parse_methods`]).
+    pub methods: Vec<String>,
+    /// Seed of everything random.
+    pub seed: u64,
+    /// Deterministic evaluation runs per road.
+    pub eval_runs: usize,
+    /// Unseen roads of the evaluation.
+    pub eval_roads: usize,
+    /// A JSON file of [`DriveTrainConfig`] (missing fields: defaults).
+    pub train_config: Option<std::path::PathBuf>,
+    /// Environment steps of SVG(1)-ER per method.
+    pub steps: Option<u64>,
+    /// Epochs of the RND predictor and of the autoencoder.
+    pub rnd_epochs: Option<usize>,
+    /// Behaviour-cloning epochs of the warm start.
+    pub bc_epochs: Option<usize>,
+    /// Environment steps between checkpoints.
+    pub checkpoint_every: Option<u64>,
+}
+
+impl DriveFlags {
+    /// The settings of a new run on the demonstration file `demo`, whose
+    /// road is `road`; validated.
+    ///
+    /// # Errors
+    /// A training config file that cannot be read; invalid settings.
+    pub fn config(&self, demo: &Path, road: DriveConfig) -> Result<DriveRunConfig> {
+        let mut train: DriveTrainConfig = match &self.train_config {
+            Some(p) => {
+                crate::run_dir::read_json(p).map_err(|e| e.context("the training config"))?
+            }
+            None => DriveTrainConfig::default(),
+        };
+        train.steps = self.steps.unwrap_or(train.steps);
+        if let Some(e) = self.rnd_epochs {
+            train.rnd.epochs = e;
+            train.autoencoder.epochs = e;
+        }
+        train.bc.epochs = self.bc_epochs.unwrap_or(train.bc.epochs);
+        train.checkpoint_every = self.checkpoint_every.unwrap_or(train.checkpoint_every);
+        let mut config = DriveRunConfig::new(demo.display().to_string(), road);
+        config.methods = parse_methods(&self.methods)?;
+        config.seed = self.seed;
+        config.eval_runs = self.eval_runs;
+        config.eval_roads = self.eval_roads;
+        config.train = train;
+        config.validate()?;
+        Ok(config)
+    }
+}
+
 /// Expands `all`, drops repeats and checks every name.
 ///
 /// # Errors
@@ -1282,6 +1337,31 @@ pub enum DriveOutcome {
         /// Its environment steps.
         env_steps: u64,
     },
+}
+
+impl DriveOutcome {
+    /// For a stopped run in `dir`: where its checkpoint is (and the step
+    /// it stopped at) and the command that resumes it, one line each.
+    pub fn stop_note(&self, dir: &Path) -> Option<String> {
+        let Self::Stopped {
+            checkpoint,
+            method,
+            env_steps,
+        } = self
+        else {
+            return None;
+        };
+        let at = if method.is_empty() {
+            "between methods".to_string()
+        } else {
+            format!("at step {env_steps} of {method}")
+        };
+        Some(format!(
+            "interrupted {at}; checkpoint saved to {}\nresume with: red-cli drive --resume {}\n",
+            checkpoint.display(),
+            dir.display()
+        ))
+    }
 }
 
 /// Trains the warm start shared by every method and runs every method.

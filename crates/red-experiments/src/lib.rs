@@ -66,6 +66,12 @@ pub trait Progress: Send {
     fn finish(&mut self) {}
 }
 
+/// The cores this process may use (1 when unknown): the default number of
+/// parallel runs or worker threads.
+pub fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
 /// A [`Progress`] that ignores everything.
 #[derive(Debug, Default, Clone, Copy)]
 pub struct Silent;

@@ -8,12 +8,13 @@ use std::time::Instant;
 
 use ndarray::Array2;
 use red_core::{Demos, Seeder, Stream};
+use red_support::stats::summary_line;
 use red_support::{
     EstimatorConfig, FitProgress, FittedEstimator, RedRewardConfig, Sigma1, SupportEstimatorConfig,
     SupportModel,
 };
 
-use crate::{Error, Result, ResultExt};
+use crate::{Error, Progress, Result, ResultExt};
 
 /// The estimator config of `kind` (`rnd`, `ae`, `kpca`) from the JSON of
 /// its fields (`None`: the defaults), with `epochs` set when given,
@@ -51,8 +52,28 @@ pub fn demo_pairs(demos: &Demos, path: &Path, what: &str) -> Result<(Array2<f64>
     Ok((s, a))
 }
 
-/// Fits `cfg` on the pairs `(s, a)` with the estimator stream of `seed`;
-/// returns the model and the seconds the fit took.
+/// The line that announces a fit of `cfg` on `pairs` pairs of `demos`
+/// (read from `path`) with `seed`.
+pub fn fit_line(
+    cfg: &EstimatorConfig,
+    pairs: usize,
+    demos: &Demos,
+    path: &Path,
+    seed: u64,
+) -> String {
+    format!(
+        "fitting {} on {pairs} pairs ({} state + {} action numbers) from {}, seed {seed}",
+        cfg.kind(),
+        demos.obs_dim,
+        demos.act_dim,
+        path.display()
+    )
+}
+
+/// Fits `cfg` on the pairs `(s, a)` with the estimator stream of `seed`,
+/// shown to `progress` as the phase `fit` (units: epochs, or kernel PCA's
+/// stages, with the last loss as message); returns the model and the
+/// seconds the fit took.
 ///
 /// # Errors
 /// The estimator's errors.
@@ -60,11 +81,23 @@ pub fn fit(
     cfg: &EstimatorConfig,
     (s, a): &(Array2<f64>, Array2<f64>),
     seed: u64,
-    on_progress: &mut dyn FnMut(FitProgress),
+    progress: &mut dyn Progress,
 ) -> Result<(FittedEstimator, f64)> {
     let mut rng = Seeder::new(seed).rng(Stream::Estimator);
     let start = Instant::now();
-    let model = cfg.fit(s.view(), a.view(), &mut rng, on_progress)?;
+    progress.start("fit", 0, 0);
+    let mut total = 0;
+    let mut on_progress = |p: FitProgress| {
+        if p.total as u64 != total {
+            // The total is known once the fit has begun.
+            total = p.total as u64;
+            progress.start("fit", total, p.done as u64);
+        }
+        let loss = p.loss.map_or(String::new(), |l| format!("loss {l:.3e}"));
+        progress.advance(p.done as u64, &loss);
+    };
+    let model = cfg.fit(s.view(), a.view(), &mut rng, &mut on_progress)?;
+    progress.finish();
     Ok((model, start.elapsed().as_secs_f64()))
 }
 
@@ -81,6 +114,28 @@ pub struct ScoreReport {
     pub rewards: Vec<f64>,
     /// Share of the pairs with reward at least 0.9.
     pub share_high: f64,
+}
+
+impl ScoreReport {
+    /// The report as `red-cli support score` prints it: what was scored
+    /// (`model` read from `model_path`, the pairs of `demo_path`), the
+    /// score statistics, `σ1` and its rule, the reward statistics and the
+    /// share of high rewards; one line each, each ending with a newline.
+    pub fn summary(&self, model: &FittedEstimator, model_path: &Path, demo_path: &Path) -> String {
+        format!(
+            "{} model {} on {} pairs of {}\n{}\nsigma1 = {:.6e} ({})\n{}\n\
+             share of pairs with reward >= 0.9: {:.3}\n",
+            model.kind(),
+            model_path.display(),
+            self.scores.len(),
+            demo_path.display(),
+            summary_line("score L", &self.scores),
+            self.sigma1,
+            self.rule,
+            summary_line("reward r", &self.rewards),
+            self.share_high
+        )
+    }
 }
 
 /// Scores the pairs of `demos` (read from `path`) with `model`; `σ1` is
@@ -151,6 +206,26 @@ mod tests {
         d
     }
 
+    /// What a fit tells its observer.
+    #[derive(Default)]
+    struct Seen {
+        starts: Vec<u64>,
+        done: Vec<u64>,
+        finished: bool,
+    }
+
+    impl Progress for Seen {
+        fn start(&mut self, _label: &str, total: u64, _done: u64) {
+            self.starts.push(total);
+        }
+        fn advance(&mut self, done: u64, _message: &str) {
+            self.done.push(done);
+        }
+        fn finish(&mut self) {
+            self.finished = true;
+        }
+    }
+
     #[test]
     fn fits_and_scores_a_file_and_refuses_what_does_not_fit() {
         let path = Path::new("demo.json");
@@ -159,8 +234,19 @@ mod tests {
         assert!(estimator_config("nope", None, None).is_err());
         let d = demos(40);
         let pairs = demo_pairs(&d, path, "fit").unwrap();
-        let (model, secs) = fit(&cfg, &pairs, 0, &mut |_| {}).unwrap();
+        let mut seen = Seen::default();
+        let (model, secs) = fit(&cfg, &pairs, 0, &mut seen).unwrap();
         assert!(secs >= 0.0);
+        // The bar starts, learns the fit's total, reaches it and ends.
+        let total = seen.starts.last().copied().unwrap();
+        assert!(seen.starts.len() >= 2 && total > 0, "{:?}", seen.starts);
+        assert_eq!(seen.done.last(), Some(&total));
+        assert!(seen.finished);
+        let line = fit_line(&cfg, pairs.0.nrows(), &d, path, 7);
+        assert_eq!(
+            line,
+            "fitting kpca on 40 pairs (2 state + 1 action numbers) from demo.json, seed 7"
+        );
         let r = score(&model, &d, path, None).unwrap();
         assert_eq!(r.scores.len(), 40);
         assert!(r.scores.windows(2).all(|w| w[0] <= w[1]));

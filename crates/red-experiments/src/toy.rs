@@ -419,6 +419,8 @@ pub enum ToyOutcome {
     /// The stop flag was raised: `saved` of `total` runs are in the
     /// checkpoint.
     Stopped {
+        /// The run folder.
+        dir: PathBuf,
         /// The checkpoint.
         checkpoint: PathBuf,
         /// Runs saved.
@@ -437,6 +439,32 @@ pub struct ToyReport {
     pub out: PathBuf,
     /// Wall time of this process's part, seconds.
     pub wall_time_s: f64,
+}
+
+impl ToyOutcome {
+    /// What to tell the user: for a finished run the tables and where they
+    /// were written; for a stopped one, what is saved and the command
+    /// that continues it. Each ends with a newline.
+    pub fn message(&self) -> String {
+        match self {
+            Self::Finished(r) => format!(
+                "{}\nwrote {} ({:.1} s)\n",
+                r.table,
+                r.out.display(),
+                r.wall_time_s
+            ),
+            Self::Stopped {
+                dir,
+                checkpoint,
+                saved,
+                total,
+            } => format!(
+                "interrupted: {saved} of {total} runs are saved in {}; continue with `red-cli toy --resume {}`\n",
+                checkpoint.display(),
+                dir.display()
+            ),
+        }
+    }
 }
 
 /// Runs the experiment of `config` into the new run folder `dir` (see
@@ -620,6 +648,7 @@ fn run_grid(
     }
     if saved < jobs.len() {
         return Ok(ToyOutcome::Stopped {
+            dir: dir.path().to_path_buf(),
             checkpoint: checkpoint_path,
             saved,
             total: jobs.len(),

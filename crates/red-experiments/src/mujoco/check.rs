@@ -31,6 +31,14 @@ pub struct EnvCheck {
     pub steps_per_s: f64,
 }
 
+/// Where the model files come from, as `red-cli mujoco check` prints it.
+pub fn assets_line() -> String {
+    match red_mujoco::assets::assets_dir() {
+        Some((dir, source)) => format!("model files: {} ({source})", dir.display()),
+        None => "model files: no folder configured".into(),
+    }
+}
+
 impl EnvCheck {
     /// The header of [`EnvCheck::row`]'s markdown table (two lines).
     pub const HEADER: &'static str = "| env | obs | act | frame skip | dt (s) | time limit | episodes ended (terminated) | steps/s |\n|---|---|---|---|---|---|---|---|";

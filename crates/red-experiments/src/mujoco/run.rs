@@ -715,6 +715,87 @@ impl Start {
     }
 }
 
+/// The command line's settings of an `expert` or `train` run: each `None`
+/// keeps the value of the `config` file or the task's default.
+#[derive(Debug, Clone, Default)]
+pub struct RunFlags {
+    /// Environment steps of TRPO.
+    pub steps: Option<u64>,
+    /// Seed of every random stream of the run.
+    pub seed: u64,
+    /// Run name (default: [`super::default_run_name`]).
+    pub name: Option<String>,
+    /// Folder of the runs.
+    pub out_dir: PathBuf,
+    /// Continue the run in this folder (its `config.json` holds the
+    /// settings; only `steps` changes them).
+    pub resume: Option<PathBuf>,
+    /// Move a folder that holds a run aside first.
+    pub force: bool,
+    /// A settings file and its text (the fields of `config.json`).
+    pub config: Option<(PathBuf, String)>,
+    /// TRPO iterations between checkpoints.
+    pub checkpoint_every: Option<u64>,
+    /// Evaluation episodes.
+    pub eval_episodes: Option<usize>,
+    /// A fixed sigma1.
+    pub sigma1: Option<f64>,
+    /// The RED release's hand-set sigma1 of the task and method.
+    pub release_sigma1: bool,
+    /// Demonstration file (default: [`super::default_demo`] in `out_dir`).
+    pub demo: Option<PathBuf>,
+}
+
+impl RunFlags {
+    /// The settings of a new run of `method` on `env`: the task's defaults,
+    /// then the `config` file, then the other flags; validated.
+    ///
+    /// # Errors
+    /// A `config` file that cannot be used, or invalid settings.
+    pub fn config(&self, env: EnvId, method: Method) -> Result<RunConfig> {
+        let mut cfg = RunConfig::for_task(env, method);
+        if let Some((path, text)) = &self.config {
+            // Fields missing from the file keep the task's defaults.
+            cfg = cfg.with_overrides(text, path)?;
+        }
+        cfg.seed = self.seed;
+        cfg.steps = self.steps.unwrap_or(cfg.steps);
+        cfg.checkpoint_every = self.checkpoint_every.unwrap_or(cfg.checkpoint_every);
+        cfg.eval_episodes = self.eval_episodes.unwrap_or(cfg.eval_episodes);
+        if let Some(s) = self.sigma1 {
+            cfg.sigma1 = Sigma1::Fixed(s);
+        }
+        if self.release_sigma1 {
+            cfg.sigma1 = Sigma1::Fixed(RunConfig::release_sigma1(env, method));
+        }
+        if method.needs_demo() {
+            let demo = self.demo.clone();
+            cfg.demo = Some(demo.unwrap_or_else(|| super::default_demo(&self.out_dir, env)));
+        }
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// The run's folder, settings and start: with `resume`, the folder's
+    /// `config.json` (with `steps` when given); otherwise a new run of
+    /// `method` on `env` ([`RunFlags::config`]) in `out_dir/name`.
+    ///
+    /// # Errors
+    /// As [`read_config`] and [`RunFlags::config`]; an invalid name.
+    pub fn prepare(&self, env: EnvId, method: Method) -> Result<(PathBuf, RunConfig, Start)> {
+        if let Some(dir) = &self.resume {
+            let mut cfg = read_config(dir)?;
+            cfg.steps = self.steps.unwrap_or(cfg.steps);
+            return Ok((dir.clone(), cfg, Start::Resume));
+        }
+        let cfg = self.config(env, method)?;
+        let name = self.name.clone();
+        let name = name.unwrap_or_else(|| super::default_run_name(env, method, cfg.seed));
+        let dir = crate::run_dir::path_in(&self.out_dir, &name)?;
+        Ok((dir, cfg, Start::from_flags(false, self.force)))
+    }
+}
+
 /// [`run_with`] with [`Start::Resume`] when `resume`, else [`Start::New`].
 ///
 /// # Errors
@@ -1303,6 +1384,35 @@ impl PolicyEval {
     }
 }
 
+impl PolicyEval {
+    /// [`evaluate_file`] as a [`PolicyEval`], with the MuJoCo warnings seen.
+    ///
+    /// # Errors
+    /// As [`evaluate_file`].
+    pub fn of_file(
+        path: &Path,
+        id: EnvId,
+        episodes: usize,
+        seed: u64,
+        sampled: bool,
+    ) -> Result<(Self, u64)> {
+        let (report, warnings) = evaluate_file(path, id, episodes, seed, sampled)?;
+        Ok((Self::new(path, id, seed, sampled, &report), warnings))
+    }
+
+    /// Writes the evaluation as JSON to `out` (atomically).
+    ///
+    /// # Errors
+    /// A file that cannot be written.
+    pub fn write(&self, out: &Path) -> Result<()> {
+        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Input {
+            path: out.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        Ok(write_atomic(out, text.as_bytes())?)
+    }
+}
+
 /// Runs the policy file `path` on `id` for `episodes` episodes with the
 /// true reward: deterministic (mean) actions, or actions sampled from the
 /// policy's Gaussian when `sampled`.
@@ -1341,6 +1451,65 @@ pub fn evaluate_file(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn flags_override_the_task_defaults_and_name_the_folder() {
+        let out = PathBuf::from("runs");
+        let flags = RunFlags {
+            out_dir: out.clone(),
+            seed: 3,
+            ..RunFlags::default()
+        };
+        let cfg = flags.config(EnvId::Hopper, Method::Red).unwrap();
+        let mut want = RunConfig::for_task(EnvId::Hopper, Method::Red);
+        want.seed = 3;
+        want.demo = Some(super::super::default_demo(&out, EnvId::Hopper));
+        assert_eq!(cfg, want);
+        let (dir, _, start) = flags.prepare(EnvId::Hopper, Method::Red).unwrap();
+        assert_eq!(dir, out.join("hopper-red-s3"));
+        assert_eq!(start, Start::New);
+        let flags = RunFlags {
+            steps: Some(1234),
+            checkpoint_every: Some(2),
+            eval_episodes: Some(4),
+            sigma1: Some(0.5),
+            force: true,
+            config: Some(("c.json".into(), r#"{"best_window": 7}"#.into())),
+            ..flags
+        };
+        let (dir, cfg, start) = flags.prepare(EnvId::Hopper, Method::Expert).unwrap();
+        assert_eq!(dir, out.join("expert-hopper"));
+        assert_eq!(start, Start::Force);
+        assert_eq!(
+            (cfg.steps, cfg.checkpoint_every, cfg.eval_episodes),
+            (1234, 2, 4)
+        );
+        assert_eq!(
+            (cfg.sigma1, cfg.best_window, cfg.demo),
+            (Sigma1::Fixed(0.5), 7, None)
+        );
+        let release = RunFlags {
+            release_sigma1: true,
+            ..flags.clone()
+        };
+        let cfg = release.config(EnvId::Ant, Method::Red).unwrap();
+        let want = Sigma1::Fixed(RunConfig::release_sigma1(EnvId::Ant, Method::Red));
+        assert_eq!(cfg.sigma1, want);
+        let bad = RunFlags {
+            config: Some(("c.json".into(), r#"{"nope": 1}"#.into())),
+            ..flags.clone()
+        };
+        assert!(bad.config(EnvId::Hopper, Method::Red).is_err());
+        let missing = RunFlags {
+            resume: Some("no/such/run".into()),
+            ..flags
+        };
+        let err = missing.prepare(EnvId::Hopper, Method::Red).unwrap_err();
+        assert!(
+            err.to_string().contains("is no/such/run a run folder"),
+            "{err}"
+        );
+    }
 
     #[test]
     fn metrics_numbers_are_short_and_read_back() {

@@ -157,6 +157,22 @@ pub struct GridOutcome {
     pub interrupted: bool,
 }
 
+impl GridOutcome {
+    /// What the user should know: one `failed: ...` line per failed cell,
+    /// and how to continue an interrupted grid; each ends with a newline.
+    pub fn notes(&self) -> String {
+        let mut text: String = self
+            .failures
+            .iter()
+            .map(|f| format!("failed: {f}\n"))
+            .collect();
+        if self.interrupted {
+            text += "interrupted: the runs saved checkpoints; rerun the same command to continue\n";
+        }
+        text
+    }
+}
+
 /// One cell of the grid: a task, a method, a seed and its run folder.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct GridCell {
@@ -228,10 +244,7 @@ pub fn run_grid(
         }
         jobs.extend(cfg.cells().into_iter().filter(|c| c.env == env));
     }
-    let jobs_n = cfg
-        .jobs
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-        .max(1);
+    let jobs_n = cfg.jobs.unwrap_or_else(crate::cores).max(1);
     progress.note(&format!(
         "{} runs, {jobs_n} at a time, into {}",
         jobs.len(),
@@ -336,6 +349,18 @@ pub struct TableReport {
     pub markdown: String,
     /// `table.csv`.
     pub csv: String,
+}
+
+impl TableReport {
+    /// The table and where it was written (with the grid's `seconds`), as
+    /// `red-cli mujoco table` prints it.
+    pub fn summary(&self, cfg: &TableConfig, seconds: f64) -> String {
+        format!(
+            "{}\n({seconds:.0} s; table, CSV and curves in {})\n",
+            self.markdown,
+            cfg.root().display()
+        )
+    }
 }
 
 /// Builds the table and the learning-curve PNGs from the runs that have
