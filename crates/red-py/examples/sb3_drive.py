@@ -8,9 +8,10 @@ on the true reward (metres driven along the road).
 
 What it does, step by step (each step is the public API of the package):
 
-1. ``red.read_demos`` reads the demo (the project's format; an imitation or
-   Minari dataset converts to it with ``red.read_imitation_npz`` /
-   ``red.from_imitation_trajectories`` / ``red.from_minari``);
+1. ``red.read_demos`` reads the demo (the project's format); ``--demo`` may
+   also be imitation's saved trajectories (``red.read_imitation``: a
+   ``serialize.save`` folder or an ``.npz``) and ``--minari ID`` a Minari
+   dataset (``red.from_minari``), both driven on the default road;
 2. ``red.RedReward.fit("rnd", obs, act, seed=S)`` fits RND (the release's
    networks) and calibrates sigma1 on held-out expert scores, as the Rust
    driving experiment does; ``terminal_heuristic`` is its end-of-episode
@@ -85,7 +86,7 @@ def behaviour_cloning(model, obs, act, epochs, seed):
             loss.backward()
             opt.step()
     policy.set_training_mode(False)
-    return float(loss)
+    return loss.item()
 
 
 def main():
@@ -93,7 +94,9 @@ def main():
     ap.add_argument("--algo", choices=["sac", "ppo"], default="sac")
     ap.add_argument("--steps", type=int, default=50_000, help="environment steps of training")
     ap.add_argument("--seed", type=int, default=0, help="seeds RED's fit, the env and SB3")
-    ap.add_argument("--demo", default=str(ROOT / "data" / "drive-scripted-expert.json"))
+    ap.add_argument("--demo", default=str(ROOT / "data" / "drive-scripted-expert.json"),
+                    help="the project's .json, or imitation's saved trajectories (a datasets folder or .npz)")
+    ap.add_argument("--minari", default=None, help="a Minari dataset id instead of --demo")
     ap.add_argument("--eval-runs", type=int, default=5)
     ap.add_argument("--bc-epochs", type=int, default=0, help="behaviour cloning epochs on the demo before RL (0: none)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads")
@@ -107,14 +110,21 @@ def main():
     torch.set_num_threads(args.threads)
     t0 = time.perf_counter()
 
-    demos = red.read_demos(args.demo)
+    if args.minari:
+        demos = red.from_minari(args.minari, env_id="drive")
+    elif args.demo.endswith(".json"):
+        demos = red.read_demos(args.demo)
+    else:
+        demos = red.read_imitation(args.demo, env_id="drive")
+    # imitation's and Minari's files do not record the road: the default one.
+    road_config = demos.scenario or red.envs.default_config()
     obs, act = demos.pairs()
     reward = red.RedReward.fit("rnd", obs, act, seed=args.seed)
     terminal = reward.terminal_heuristic(obs, act)
     t_fit = time.perf_counter() - t0
     print(f"RED's reward: {reward!r}, fitted on {len(obs)} pairs in {t_fit:.1f} s")
 
-    env = Monitor(red.RedRewardWrapper(red.envs.make(demos.scenario), reward, terminal))
+    env = Monitor(red.RedRewardWrapper(red.envs.make(road_config), reward, terminal))
     env.reset(seed=args.seed)
     if args.algo == "sac":
         model = SAC("MlpPolicy", env, seed=args.seed, verbose=0, device="cpu")
@@ -124,7 +134,7 @@ def main():
     after_bc = None
     if args.bc_epochs > 0:
         loss = behaviour_cloning(model, obs, act, args.bc_epochs, args.seed)
-        d, e = evaluate(model, demos.scenario, args.eval_runs)
+        d, e = evaluate(model, road_config, args.eval_runs)
         after_bc = {"distances_m": d, "ends": e, "mean_m": float(np.mean(d)), "bc_loss": loss}
         print(f"after {args.bc_epochs} epochs of behaviour cloning (MSE {loss:.4f}): "
               f"{np.mean(d):.1f} m, ends {e}")
@@ -136,14 +146,14 @@ def main():
     print(f"trained {args.algo} for {args.steps} steps in {t_train:.0f} s ({args.steps / t_train:.0f} steps/s), "
           f"{len(episodes)} episodes")
 
-    distances, ends = evaluate(model, demos.scenario, args.eval_runs)
-    road = demos.scenario["road_length"]
+    distances, ends = evaluate(model, road_config, args.eval_runs)
+    road = road_config["road_length"]
     mean = float(np.mean(distances))
     result = {
         "algo": args.algo,
         "steps": args.steps,
         "seed": args.seed,
-        "demo": os.path.relpath(args.demo, ROOT) if args.demo.startswith(str(ROOT)) else args.demo,
+        "demo": args.minari or (os.path.relpath(args.demo, ROOT) if args.demo.startswith(str(ROOT)) else args.demo),
         "sigma1": reward.sigma1,
         "bc_epochs": args.bc_epochs,
         "after_bc": after_bc,
