@@ -89,6 +89,31 @@ def behaviour_cloning(model, obs, act, epochs, seed):
     return loss.item()
 
 
+def progress_callback(every):
+    """Prints, every `every` steps, the time and the true distance of the
+    training episodes since the last print (from info["true_reward"])."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Progress(BaseCallback):
+        def _on_training_start(self):
+            self.t0, self.ep, self.done = time.perf_counter(), 0.0, []
+
+        def _on_step(self):
+            for info, d in zip(self.locals["infos"], self.locals["dones"]):
+                self.ep += info["true_reward"]
+                if d:
+                    self.done.append(self.ep)
+                    self.ep = 0.0
+            if self.num_timesteps % every == 0:
+                seen = f"{np.mean(self.done):.1f} m over {len(self.done)}" if self.done else "none ended"
+                print(f"  step {self.num_timesteps}: {time.perf_counter() - self.t0:.0f} s, "
+                      f"training episodes' true distance {seen}", flush=True)
+                self.done = []
+            return True
+
+    return Progress()
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--algo", choices=["sac", "ppo"], default="sac")
@@ -100,6 +125,7 @@ def main():
     ap.add_argument("--eval-runs", type=int, default=5)
     ap.add_argument("--bc-epochs", type=int, default=0, help="behaviour cloning epochs on the demo before RL (0: none)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads")
+    ap.add_argument("--progress-every", type=int, default=2500, help="print progress every N steps")
     ap.add_argument("--out", default=None, help="folder for result.json and model.zip")
     args = ap.parse_args()
 
@@ -140,7 +166,7 @@ def main():
               f"{np.mean(d):.1f} m, ends {e}")
 
     t1 = time.perf_counter()
-    model.learn(total_timesteps=args.steps, log_interval=10)
+    model.learn(total_timesteps=args.steps, callback=progress_callback(args.progress_every))
     t_train = time.perf_counter() - t1
     episodes = env.get_episode_rewards()
     print(f"trained {args.algo} for {args.steps} steps in {t_train:.0f} s ({args.steps / t_train:.0f} steps/s), "
