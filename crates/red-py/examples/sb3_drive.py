@@ -40,6 +40,7 @@ import red
 
 ROOT = pathlib.Path(__file__).resolve().parents[3]
 EVAL_SEED = 1000  # red-experiments' drive::EVAL_SEED
+UNSEEN_TRACK_SEED = 100  # red-experiments' drive::UNSEEN_FIRST_TRACK_SEED
 
 
 def evaluate(model, config, runs):
@@ -126,6 +127,9 @@ def main():
     ap.add_argument("--bc-epochs", type=int, default=0, help="behaviour cloning epochs on the demo before RL (0: none)")
     ap.add_argument("--threads", type=int, default=1, help="torch threads")
     ap.add_argument("--progress-every", type=int, default=2500, help="print progress every N steps")
+    ap.add_argument("--eval-roads", type=int, default=0,
+                    help="also evaluate on N roads the demo never saw (track seeds 100, 101, ...; red-cli drive's)")
+    ap.add_argument("--load", default=None, help="evaluate this saved model.zip instead of training one")
     ap.add_argument("--out", default=None, help="folder for result.json and model.zip")
     args = ap.parse_args()
 
@@ -152,13 +156,14 @@ def main():
 
     env = Monitor(red.RedRewardWrapper(red.envs.make(road_config), reward, terminal))
     env.reset(seed=args.seed)
-    if args.algo == "sac":
-        model = SAC("MlpPolicy", env, seed=args.seed, verbose=0, device="cpu")
+    algo = SAC if args.algo == "sac" else PPO
+    if args.load:
+        model = algo.load(args.load, env=env, device="cpu")
     else:
-        model = PPO("MlpPolicy", env, seed=args.seed, verbose=0, device="cpu")
+        model = algo("MlpPolicy", env, seed=args.seed, verbose=0, device="cpu")
 
     after_bc = None
-    if args.bc_epochs > 0:
+    if args.bc_epochs > 0 and not args.load:
         loss = behaviour_cloning(model, obs, act, args.bc_epochs, args.seed)
         d, e = evaluate(model, road_config, args.eval_runs)
         after_bc = {"distances_m": d, "ends": e, "mean_m": float(np.mean(d)), "bc_loss": loss}
@@ -166,11 +171,13 @@ def main():
               f"{np.mean(d):.1f} m, ends {e}")
 
     t1 = time.perf_counter()
-    model.learn(total_timesteps=args.steps, callback=progress_callback(args.progress_every))
+    if not args.load:
+        model.learn(total_timesteps=args.steps, callback=progress_callback(args.progress_every))
     t_train = time.perf_counter() - t1
     episodes = env.get_episode_rewards()
-    print(f"trained {args.algo} for {args.steps} steps in {t_train:.0f} s ({args.steps / t_train:.0f} steps/s), "
-          f"{len(episodes)} episodes")
+    if not args.load:
+        print(f"trained {args.algo} for {args.steps} steps in {t_train:.0f} s "
+              f"({args.steps / t_train:.0f} steps/s), {len(episodes)} episodes")
 
     distances, ends = evaluate(model, road_config, args.eval_runs)
     road = road_config["road_length"]
@@ -190,13 +197,30 @@ def main():
         "std_m": float(np.std(distances)),
         "best_m": float(np.max(distances)),
         "percent_of_road": 100.0 * mean / road,
-        "train_wall_s": t_train,
+        "train_wall_s": None if args.load else t_train,
+        "loaded": args.load,
         "total_wall_s": time.perf_counter() - t0,
         "versions": {"red": red.__version__, "torch": torch.__version__,
                      "stable_baselines3": __import__("stable_baselines3").__version__},
     }
     print(f"final policy, {args.eval_runs} deterministic runs: {mean:.1f} +- {result['std_m']:.1f} m "
           f"({result['percent_of_road']:.1f}% of the {road:.0f} m road), best {result['best_m']:.1f} m, ends {ends}")
+    if args.eval_roads:
+        # red-cli drive's: from 100 on, the demo's own road skipped.
+        seeds = [t for t in range(UNSEEN_TRACK_SEED, UNSEEN_TRACK_SEED + args.eval_roads + 1)
+                 if t != road_config["track_seed"]][: args.eval_roads]
+        per_road = []
+        for t in seeds:
+            other = dict(road_config, track_seed=t)
+            d, _ = evaluate(model, other, args.eval_runs)
+            per_road.append(100.0 * float(np.mean(d)) / other["road_length"])
+        result["unseen_roads"] = {
+            "track_seeds": seeds,
+            "percent_per_road": per_road,
+            "percent_mean": float(np.mean(per_road)),
+        }
+        print(f"on {args.eval_roads} unseen roads: {np.mean(per_road):.1f}% of the road on average "
+              f"(per road: {', '.join(f'{p:.0f}' for p in per_road)})")
     print(f"wall time {result['total_wall_s']:.0f} s")
     if args.out:
         out = pathlib.Path(args.out)
