@@ -24,8 +24,10 @@ What it does, step by step (each step is the public API of the package):
    ``red-cli drive`` evaluates) on the true reward: distance driven, and its
    mean as a percentage of the road's length.
 
-Not part of CI (torch is several GB). Writes ``OUT/result.json`` and the
-policy ``OUT/model.zip``.
+``--eval-roads N`` also evaluates on N roads the demo never saw, ``--load``
+evaluates a saved ``model.zip`` without training. Not part of CI (torch is
+several GB). Writes ``OUT/result.json`` and the policy ``OUT/model.zip``.
+Measured results and wall times: docs/python.md.
 """
 
 import argparse
