@@ -2,7 +2,7 @@
 against the same RND networks written in numpy and, when importable, in
 PyTorch, all on one thread.
 
-    python crates/red-py/bench/bench_reward.py [--batch 1024] [--repeats 200]
+    python crates/red-py/bench/bench_reward.py [--batch 1 1024] [--repeats 200]
 
 The networks are the release's RND (target 4 x 128 leaky relu, predictor
 1 x 128, outputs 128), fitted by red on the shipped demo with seed 0; the
@@ -48,39 +48,43 @@ def numpy_forward(layers, x):
     return x
 
 
-def timed(fn, repeats):
-    """Median, 10th and 90th percentile of the wall time of a call, and the
-    median on-CPU time of the calling thread (steadier on a shared
-    machine; all the work runs on this thread)."""
-    fn()  # warm up
-    times, cpu = [], []
-    for _ in range(repeats):
-        t, c = time.perf_counter(), time.thread_time()
-        fn()
-        cpu.append(time.thread_time() - c)
-        times.append(time.perf_counter() - t)
-    return (
-        float(np.median(times)),
-        float(np.percentile(times, 10)),
-        float(np.percentile(times, 90)),
-        float(np.median(cpu)),
-    )
+def timed(fns, repeats):
+    """{name: (wall median, 10th and 90th percentile, median on-CPU time of
+    the calling thread)} of one call of each function. The calls are
+    interleaved (one of each per round, the order rotating) so that every
+    implementation sees the same load on a shared machine; the on-CPU time
+    is the steadier measure (all the work runs on this thread)."""
+    names = list(fns)
+    for f in fns.values():
+        f()  # warm up
+    times = {n: [] for n in names}
+    cpu = {n: [] for n in names}
+    for r in range(repeats):
+        for n in names[r % len(names):] + names[: r % len(names)]:
+            t, c = time.perf_counter(), time.thread_time()
+            fns[n]()
+            cpu[n].append(time.thread_time() - c)
+            times[n].append(time.perf_counter() - t)
+    return {
+        n: (
+            float(np.median(times[n])),
+            float(np.percentile(times[n], 10)),
+            float(np.percentile(times[n], 90)),
+            float(np.median(cpu[n])),
+        )
+        for n in names
+    }
 
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--batch", type=int, default=1024)
+    ap.add_argument("--batch", type=int, nargs="+", default=[1024], help="batch sizes (pairs per call)")
     ap.add_argument("--repeats", type=int, default=200)
     args = ap.parse_args()
 
     demos = red.read_demos(ROOT / "data" / "drive-scripted-expert.json")
     obs, act = demos.pairs()
     reward = red.RedReward.fit("rnd", obs, act, seed=0)
-    rng = np.random.default_rng(0)
-    idx = rng.integers(0, len(obs), size=args.batch)
-    s = obs[idx] + rng.normal(scale=0.01, size=(args.batch, obs.shape[1]))
-    a = np.clip(act[idx] + rng.normal(scale=0.1, size=(args.batch, act.shape[1])), -1, 1)
-
     with tempfile.TemporaryDirectory() as d:
         reward.model.save(pathlib.Path(d) / "m.json")
         model = json.load(open(pathlib.Path(d) / "m.json"))["model"]["rnd"]
@@ -90,24 +94,14 @@ def main():
     target, predictor = layers_of(pair["target"]), layers_of(pair["predictor"])
     sigma1 = reward.sigma1
 
-    def with_numpy():
-        x = ((np.hstack([s, a]) - mean) / scale).astype(np.float32)
-        d = numpy_forward(predictor, x) - numpy_forward(target, x)
-        return np.exp(-sigma1 * (d * d).mean(axis=1, dtype=np.float64))
-
-    def with_red():
-        return reward.reward(s, a)
-
-    ref = with_red()
-    np.testing.assert_allclose(with_numpy(), ref, rtol=1e-4)
-    results = {"red (Rust, PyO3)": timed(with_red, args.repeats), "numpy": timed(with_numpy, args.repeats)}
-
     try:
         import torch
     except ImportError:
-        print("PyTorch is not installed: no PyTorch figure")
+        torch = None
+        print("PyTorch is not installed (pip install torch): no PyTorch figures")
     else:
         torch.set_num_threads(1)
+        torch.set_num_interop_threads(1)
 
         def torch_net(layers):
             mods = []
@@ -125,22 +119,58 @@ def main():
         mean_t = torch.from_numpy(mean)
         scale_t = torch.from_numpy(scale)
 
-        def with_torch():
-            with torch.inference_mode():
-                x = ((torch.from_numpy(np.hstack([s, a])) - mean_t) / scale_t).float()
-                d = pnet(x) - tnet(x)
-                return torch.exp(-sigma1 * (d * d).double().mean(dim=1)).numpy()
+    rng = np.random.default_rng(0)
+    print(f"one thread; {args.repeats} calls of each, interleaved: wall median (p10-p90), on-CPU median of the calling thread")
+    for batch in args.batch:
+        idx = rng.integers(0, len(obs), size=batch)
+        s = obs[idx] + rng.normal(scale=0.01, size=(batch, obs.shape[1]))
+        a = np.clip(act[idx] + rng.normal(scale=0.1, size=(batch, act.shape[1])), -1, 1)
 
-        np.testing.assert_allclose(with_torch(), ref, rtol=1e-4)
-        results[f"PyTorch {torch.__version__}"] = timed(with_torch, args.repeats)
+        def with_numpy():
+            x = ((np.hstack([s, a]) - mean) / scale).astype(np.float32)
+            d = numpy_forward(predictor, x) - numpy_forward(target, x)
+            return np.exp(-sigma1 * (d * d).mean(axis=1, dtype=np.float64))
 
-    print(f"reward of {args.batch} pairs, one thread, {args.repeats} calls: wall median (p10-p90), on-CPU median")
-    base, base_cpu = results["red (Rust, PyO3)"][0], results["red (Rust, PyO3)"][3]
-    for name, (med, p10, p90, cpu) in results.items():
-        print(
-            f"  {name:<22} wall {med * 1e3:7.3f} ms ({p10 * 1e3:.3f}-{p90 * 1e3:.3f}) = {med / base:4.2f}x red's;"
-            f"  CPU {cpu * 1e3:7.3f} ms = {cpu / base_cpu:4.2f}x red's;  {args.batch / cpu:,.0f} pairs/s on-CPU"
-        )
+        def with_red():
+            return reward.reward(s, a)
+
+        ref = with_red()
+        checks = {"numpy": np.abs(with_numpy() - ref).max()}
+        fns = {"red (Rust, PyO3)": with_red, "numpy": with_numpy}
+        if torch is not None:
+            # The same call as red's: float64 numpy arrays in, float64 numpy out.
+            def with_torch():
+                with torch.inference_mode():
+                    x = ((torch.from_numpy(np.hstack([s, a])) - mean_t) / scale_t).float()
+                    d = pnet(x) - tnet(x)
+                    return torch.exp(-sigma1 * (d * d).double().mean(dim=1)).numpy()
+
+            # PyTorch's best case: the standardised float32 input already a
+            # tensor, only the two networks and the reward timed.
+            x_ready = ((torch.from_numpy(np.hstack([s, a])) - mean_t) / scale_t).float()
+
+            def with_torch_nets_only():
+                with torch.inference_mode():
+                    d = pnet(x_ready) - tnet(x_ready)
+                    return torch.exp(-sigma1 * (d * d).mean(dim=1))
+
+            checks[f"PyTorch {torch.__version__}"] = np.abs(with_torch() - ref).max()
+            checks["PyTorch, networks only"] = np.abs(with_torch_nets_only().double().numpy() - ref).max()
+            fns[f"PyTorch {torch.__version__}"] = with_torch
+            fns["PyTorch, networks only"] = with_torch_nets_only
+        for name, err in checks.items():
+            # Rewards are in (0, 1]; float32 networks agree to ~1e-6.
+            assert err <= 1e-5, f"{name} differs from red by {err:.2e}"
+
+        results = timed(fns, args.repeats)
+        print(f"batch {batch} (max |reward - red's|: "
+              + ", ".join(f"{k} {v:.1e}" for k, v in checks.items()) + ")")
+        base, base_cpu = results["red (Rust, PyO3)"][0], results["red (Rust, PyO3)"][3]
+        for name, (med, p10, p90, cpu) in results.items():
+            print(
+                f"  {name:<24} wall {med * 1e3:8.3f} ms ({p10 * 1e3:.3f}-{p90 * 1e3:.3f}) = {med / base:5.2f}x red's;"
+                f"  CPU {cpu * 1e3:8.3f} ms = {cpu / base_cpu:5.2f}x red's;  {batch / cpu:,.0f} pairs/s on-CPU"
+            )
 
 
 if __name__ == "__main__":

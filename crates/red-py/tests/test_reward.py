@@ -168,3 +168,44 @@ def test_calls_release_the_gil(demos):
     assert elapsed > 0.05, "the fit was too short to tell"
     # With the GIL held the counter would not move during the fit.
     assert n1 - n0 >= 5
+
+
+@pytest.mark.parametrize("method", ["reward", "score", "reward_grad_action"])
+def test_reward_calls_release_the_gil(demos, method):
+    """Another Python thread runs during one `reward` / `score` /
+    `reward_grad_action` call on a large batch (not only between calls:
+    only ticks stamped strictly inside the call are counted)."""
+    obs, act = demos.pairs()
+    reward = red.RedReward.fit("rnd", obs, act, seed=0, epochs=2, folds=None)
+    call = getattr(reward, method)
+    # Grow the batch until one call takes long enough to tell (>= 0.2 s).
+    reps, elapsed = 8, 0.0
+    while True:
+        s, a = np.tile(obs, (reps, 1)), np.tile(act, (reps, 1))
+        start = time.perf_counter()
+        call(s, a)
+        elapsed = time.perf_counter() - start
+        if elapsed >= 0.2 or reps >= 4096:
+            break
+        reps *= 2
+    assert elapsed >= 0.2, "the call was too short to tell"
+    done = threading.Event()
+    ticks = []
+
+    def count():
+        while not done.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.001)
+
+    t = threading.Thread(target=count)
+    t.start()
+    time.sleep(0.02)
+    start = time.perf_counter()
+    call(s, a)
+    end = time.perf_counter()
+    done.set()
+    t.join()
+    inside = [x for x in ticks if start < x < end]
+    # Holding the GIL, the counter could stamp at most one tick (before the
+    # call took the GIL); releasing it, about one per millisecond.
+    assert len(inside) >= 10, f"{len(inside)} ticks during a {end - start:.3f} s call"

@@ -19,6 +19,7 @@ from ._red import (  # noqa: F401
 from .convert import (  # noqa: F401
     from_imitation_trajectories,
     from_minari,
+    read_imitation,
     read_imitation_npz,
     to_imitation_trajectories,
     write_imitation_npz,

@@ -4,7 +4,9 @@ project's demo format (:class:`red.demos.Demos`), and back to imitation's.
 * imitation's ``Trajectory`` / ``TrajectoryWithRew`` lists (any objects with
   ``obs`` (T+1, obs_dim), ``acts`` (T, act_dim), ``terminal`` and optionally
   ``rews`` (T,); imitation itself is not needed);
-* imitation's ``.npz`` files (``imitation.data.serialize``'s old format:
+* imitation's saved trajectories: its HuggingFace ``datasets`` folders
+  (imitation >= 1.0's ``serialize.save``; :func:`read_imitation`) and its
+  ``.npz`` files (``imitation.data.serialize``'s old format:
   ``obs``, ``acts``, ``infos`` (object array), ``terminal``, ``indices``,
   optional ``rews``; an ``acs`` key is read as ``acts``);
 * Minari datasets (``minari`` must be installed for ids; a dataset object or
@@ -108,6 +110,39 @@ def read_imitation_npz(path: "os.PathLike[str] | str", env_id: str, control_hz: 
             f"(indices has {k} split points)"
         )
     trajs = [_trajectory(i, obs[i], acts[i], rews[i], terminal[i]) for i in range(k + 1)]
+    return _demos(env_id, trajs, control_hz)
+
+
+def read_imitation(path: "os.PathLike[str] | str", env_id: str, control_hz: Optional[float] = None) -> Demos:
+    """Trajectories saved by imitation to Demos: a folder written by
+    ``imitation.data.serialize.save`` (imitation >= 1.0: a HuggingFace
+    ``datasets`` folder with columns ``obs``, ``acts``, ``infos``,
+    ``terminal`` and optionally ``rews``; needs the ``datasets`` package,
+    which imitation installs, but not imitation itself) or an ``.npz`` file
+    (:func:`read_imitation_npz`)."""
+    p = os.fspath(path)
+    if not os.path.isdir(p):
+        return read_imitation_npz(p, env_id, control_hz)
+    try:
+        import datasets
+    except ImportError as e:  # pragma: no cover - depends on the machine
+        raise ImportError(
+            f"{p} is a folder (imitation's HuggingFace datasets format): reading it needs "
+            "the datasets package (pip install datasets)"
+        ) from e
+    ds = datasets.load_from_disk(p)
+    missing = [k for k in ("obs", "acts", "terminal") if k not in ds.column_names]
+    if missing:
+        raise ValueError(
+            f"{p}: not imitation's trajectory dataset: missing the columns {missing} "
+            f"(it has {ds.column_names})"
+        )
+    cols = ["obs", "acts", "terminal"] + (["rews"] if "rews" in ds.column_names else [])
+    rows = ds.select_columns(cols).with_format("numpy")
+    trajs = [
+        _trajectory(i, row["obs"], row["acts"], row.get("rews"), bool(row["terminal"]))
+        for i, row in enumerate(rows)
+    ]
     return _demos(env_id, trajs, control_hz)
 
 

@@ -52,7 +52,12 @@ class RedRewardWrapper(gym.Wrapper):
         return obs, r, terminated, truncated, info
 
 
-class RedRewardVectorWrapper(gym.vector.VectorWrapper):
+# Gymnasium >= 1.0; imitation 1.0 pins Gymnasium 0.29, which has no
+# VectorWrapper: there the single-env wrapper works and this one says so.
+_VectorWrapper = getattr(gym.vector, "VectorWrapper", object)
+
+
+class RedRewardVectorWrapper(_VectorWrapper):
     """Vector env: one batched reward call per step for all sub-envs.
 
     With Gymnasium's default autoreset (``NEXT_STEP``) the step after an
@@ -62,6 +67,11 @@ class RedRewardVectorWrapper(gym.vector.VectorWrapper):
     ``info["_true_reward"]`` the mask, all True)."""
 
     def __init__(self, env: gym.vector.VectorEnv, reward: RedReward, terminal: Optional[TerminalHeuristic] = None):
+        if _VectorWrapper is object:
+            raise ImportError(
+                f"RedRewardVectorWrapper needs gymnasium >= 1.0 (this is {gym.__version__}); wrap each "
+                "sub-env in red.RedRewardWrapper instead (SB3: make_vec_env(..., wrapper_class=...))"
+            )
         super().__init__(env)
         self.red_reward = reward
         self.terminal = terminal
