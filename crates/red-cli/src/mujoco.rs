@@ -14,7 +14,7 @@ use anyhow::Context;
 use clap::{Args, Subcommand};
 use indicatif::MultiProgress;
 use red_experiments::Progress;
-use red_experiments::mujoco::check::{EnvCheck, assets_line, check_env};
+use red_experiments::mujoco::check::check_envs;
 use red_experiments::mujoco::run::{self, Outcome, PolicyEval, RunFlags};
 use red_experiments::mujoco::slurm::{self, SlurmConfig};
 use red_experiments::mujoco::table::{self, GridProgress, TableConfig};
@@ -414,7 +414,7 @@ impl GridProgress for GridBars {
 
 /// Runs `red-cli mujoco table`.
 fn table(args: TableArgs) -> anyhow::Result<()> {
-    let mut cfg = TableConfig {
+    let cfg = TableConfig {
         seeds: args.seeds,
         steps: args.steps,
         name: args.name,
@@ -424,14 +424,8 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
         eval_episodes: args.eval_episodes,
         checkpoint_every: args.checkpoint_every,
         ..TableConfig::default()
-    };
-    if !args.envs.is_empty() {
-        cfg.envs = args.envs;
     }
-    if !args.methods.is_empty() {
-        cfg.methods = args.methods.clone();
-    }
-    cfg.validate()?;
+    .with_grid(args.envs, args.methods)?;
     if args.slurm.slurm {
         return args.slurm.submit(&cfg);
     }
@@ -478,17 +472,7 @@ fn eval(args: EvalArgs) -> anyhow::Result<()> {
 }
 
 fn check(args: CheckArgs) -> anyhow::Result<()> {
-    let ids = if args.envs.is_empty() {
-        EnvId::ALL.to_vec()
-    } else {
-        args.envs
-    };
-    anyhow::ensure!(args.steps > 0, "--steps must be at least 1");
-    println!("{}", assets_line());
-    println!("{}", EnvCheck::HEADER);
-    for id in ids {
-        println!("{}", check_env(id, args.steps, args.seed)?.row());
-    }
-    println!("all environments passed the env checker");
-    Ok(())
+    Ok(check_envs(&args.envs, args.steps, args.seed, &mut |l| {
+        println!("{l}")
+    })?)
 }

@@ -8,7 +8,7 @@ use red_core::Env;
 use red_core::check::{CheckConfig, check_env_with};
 use red_mujoco::{EnvId, MujocoEnv};
 
-use crate::{Result, ResultExt};
+use crate::{Error, Result, ResultExt};
 
 /// One task's check: its dimensions, timing, and what the checker saw.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,6 +90,34 @@ pub fn check_env(id: EnvId, steps: usize, seed: u64) -> Result<EnvCheck> {
         terminated: report.terminated,
         steps_per_s,
     })
+}
+
+/// `red-cli mujoco check`: the model files' folder, then each of `ids`
+/// (all five when empty) through [`check_env`] as a table row, each line
+/// handed to `line` as soon as it is known.
+///
+/// # Errors
+/// `steps` of 0, and [`check_env`]'s errors.
+pub fn check_envs(
+    ids: &[EnvId],
+    steps: usize,
+    seed: u64,
+    line: &mut dyn FnMut(&str),
+) -> Result<()> {
+    if steps == 0 {
+        return Err(Error::InvalidConfig {
+            field: "--steps".into(),
+            reason: "must be at least 1".into(),
+        });
+    }
+    let ids = if ids.is_empty() { &EnvId::ALL[..] } else { ids };
+    line(&assets_line());
+    line(EnvCheck::HEADER);
+    for &id in ids {
+        line(&check_env(id, steps, seed)?.row());
+    }
+    line("all environments passed the env checker");
+    Ok(())
 }
 
 #[cfg(test)]

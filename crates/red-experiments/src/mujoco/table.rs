@@ -70,6 +70,23 @@ impl Default for TableConfig {
 }
 
 impl TableConfig {
+    /// This grid with its tasks and methods replaced by `envs` and
+    /// `methods` where they are not empty (the command line's "default:
+    /// all"), then checked.
+    ///
+    /// # Errors
+    /// As [`TableConfig::validate`].
+    pub fn with_grid(mut self, envs: Vec<EnvId>, methods: Vec<Method>) -> Result<Self> {
+        if !envs.is_empty() {
+            self.envs = envs;
+        }
+        if !methods.is_empty() {
+            self.methods = methods;
+        }
+        self.validate()?;
+        Ok(self)
+    }
+
     /// Checks every field.
     ///
     /// # Errors
