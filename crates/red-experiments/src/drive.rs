@@ -493,7 +493,8 @@ pub struct DriveFlags {
     pub eval_runs: usize,
     /// Unseen roads of the evaluation.
     pub eval_roads: usize,
-    /// A JSON file of [`DriveTrainConfig`] (missing fields: defaults).
+    /// A JSON file of [`DriveTrainConfig`] written over the defaults (a field
+    /// it leaves out keeps the default, at every depth).
     pub train_config: Option<std::path::PathBuf>,
     /// Environment steps of SVG(1)-ER per method.
     pub steps: Option<u64>,
@@ -513,9 +514,8 @@ impl DriveFlags {
     /// A training config file that cannot be read; invalid settings.
     pub fn config(&self, demo: &Path, road: DriveConfig) -> Result<DriveRunConfig> {
         let mut train: DriveTrainConfig = match &self.train_config {
-            Some(p) => {
-                crate::run_dir::read_json(p).map_err(|e| e.context("the training config"))?
-            }
+            Some(p) => crate::run_dir::read_json_over(p, &DriveTrainConfig::default())
+                .map_err(|e| e.context("the training config"))?,
             None => DriveTrainConfig::default(),
         };
         train.steps = self.steps.unwrap_or(train.steps);
@@ -1877,6 +1877,34 @@ mod tests {
         bad.svg.gamma = 1.5;
         let e = bad.validate().unwrap_err().to_string();
         assert!(e.contains("gamma"), "{e}");
+    }
+
+    #[test]
+    fn a_partial_train_config_keeps_the_drive_defaults_it_leaves_out() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("t.json");
+        std::fs::write(&p, r#"{"svg": {"gamma": 0.9}, "sac": {"tau": 0.01}}"#).unwrap();
+        let flags = DriveFlags {
+            methods: vec!["red".into()],
+            eval_runs: 1,
+            train_config: Some(p.clone()),
+            ..DriveFlags::default()
+        };
+        let c = flags
+            .config(Path::new("d.json"), DriveConfig::default())
+            .unwrap();
+        let (d, t) = (DriveTrainConfig::default(), &c.train);
+        assert_eq!(t.svg.gamma, 0.9);
+        // Not SvgConfig::default()'s 1e-4, no fixed std and 0.99: the drive's.
+        assert_eq!(t.svg.policy_lr, d.svg.policy_lr);
+        assert_eq!(t.svg.fixed_std, d.svg.fixed_std);
+        assert_eq!(t.sac.tau, 0.01);
+        assert_eq!(t.sac.hidden, d.sac.hidden);
+        assert_eq!(t.sac.batch_size, d.sac.batch_size);
+        std::fs::write(&p, r#"{"svg": {"gama": 0.9}}"#).unwrap();
+        let e = flags.config(Path::new("d.json"), DriveConfig::default());
+        let e = e.unwrap_err().to_string();
+        assert!(e.contains("gama") && e.contains("t.json"), "{e}");
     }
 
     #[test]

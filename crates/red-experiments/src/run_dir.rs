@@ -609,6 +609,69 @@ pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     parse_json(&text, path)
 }
 
+/// `base` with the fields of the JSON object `text` (read from `source`)
+/// written over it: nested objects are merged field by field, so a field
+/// the text leaves out keeps `base`'s value at every depth (a partial
+/// `{"svg": {"gamma": 0.9}}` keeps every other SVG setting of `base`, not
+/// the library type's own defaults). Unknown fields are refused as `T`
+/// refuses them.
+///
+/// # Errors
+/// [`Error::Input`] naming `source` for text that is not JSON or not a `T`
+/// once merged.
+pub fn overlay_json<T>(base: &T, text: &str, source: &Path) -> Result<T>
+where
+    T: serde::Serialize + serde::de::DeserializeOwned,
+{
+    let bad = |reason: String| Error::Input {
+        path: source.to_path_buf(),
+        reason,
+    };
+    let mut merged = serde_json::to_value(base)
+        .map_err(|e| bad(format!("cannot serialise the defaults: {e}")))?;
+    let over: serde_json::Value = serde_json::from_str(text.trim_start_matches('\u{feff}'))
+        .map_err(|e| bad(format!("parsing: {e}")))?;
+    if !over.is_object() {
+        return Err(bad("must hold a JSON object ({...})".into()));
+    }
+    merge(&mut merged, over);
+    serde_json::from_value(merged).map_err(|e| bad(e.to_string()))
+}
+
+/// The JSON object in the file at `path` written over `base` (see
+/// [`overlay_json`]).
+///
+/// # Errors
+/// [`Error::Input`] naming `path` when it cannot be read or does not make a
+/// `T`.
+pub fn read_json_over<T>(path: &Path, base: &T) -> Result<T>
+where
+    T: serde::Serialize + serde::de::DeserializeOwned,
+{
+    let text = std::fs::read_to_string(path).map_err(|e| Error::Input {
+        path: path.to_path_buf(),
+        reason: format!("cannot read it: {e}"),
+    })?;
+    overlay_json(base, &text, path)
+}
+
+/// Overwrites `base` with the fields of `over`, recursively for objects.
+fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
+    match (base, over) {
+        (serde_json::Value::Object(b), serde_json::Value::Object(o)) => {
+            for (k, v) in o {
+                match b.get_mut(&k) {
+                    Some(slot) => merge(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (b, o) => *b = o,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -306,40 +306,15 @@ impl RunConfig {
     /// [`Error::Input`] naming `source` for text that is not JSON, an unknown
     /// field, or another task or method than these settings'.
     pub fn with_overrides(self, json: &str, source: &Path) -> Result<Self> {
-        let bad = |reason: String| Error::Input {
-            path: source.to_path_buf(),
-            reason,
-        };
         let (env, method) = (self.env, self.method);
-        let mut base = serde_json::to_value(self)
-            .map_err(|e| bad(format!("cannot serialise the defaults: {e}")))?;
-        let over: serde_json::Value =
-            serde_json::from_str(json).map_err(|e| bad(format!("parsing: {e}")))?;
-        merge(&mut base, over);
-        let cfg: Self = serde_json::from_value(base).map_err(|e| bad(e.to_string()))?;
+        let cfg = crate::run_dir::overlay_json(&self, json, source)?;
         if cfg.env != env || cfg.method != method {
-            return Err(bad(
-                "sets another task or method than the command line".into()
-            ));
+            return Err(Error::Input {
+                path: source.to_path_buf(),
+                reason: "sets another task or method than the command line".into(),
+            });
         }
         Ok(cfg)
-    }
-}
-
-/// Overwrites `base` with the fields of `over`, recursively for objects.
-fn merge(base: &mut serde_json::Value, over: serde_json::Value) {
-    match (base, over) {
-        (serde_json::Value::Object(b), serde_json::Value::Object(o)) => {
-            for (k, v) in o {
-                match b.get_mut(&k) {
-                    Some(slot) => merge(slot, v),
-                    None => {
-                        b.insert(k, v);
-                    }
-                }
-            }
-        }
-        (b, o) => *b = o,
     }
 }
 
