@@ -21,7 +21,7 @@
 use std::ops::ControlFlow;
 
 use rand::Rng;
-use red_core::Env;
+use red_core::{Env, Space};
 
 use crate::svg::{DifferentiableReward, EpisodeOutcome, EpisodeReport};
 use crate::{Error, Result};
@@ -171,5 +171,35 @@ impl<L: ?Sized, R: ?Sized> EpisodeHooks<L, R> for OnEpisode<'_> {
             (self.on_episode)(&ep.report);
         }
         Ok(ControlFlow::Continue(()))
+    }
+}
+
+/// Refuses an environment whose spaces are not boxes of the learner's
+/// dimensions (`learner` names it in the error).
+pub(crate) fn check_spaces<E: Env + ?Sized>(
+    learner: &str,
+    env: &E,
+    obs_dim: usize,
+    act_dim: usize,
+) -> Result<()> {
+    match (env.observation_space(), env.action_space()) {
+        (Space::Box(o), Space::Box(a)) if o.dim() == obs_dim && a.dim() == act_dim => Ok(()),
+        _ => Err(Error::ShapeMismatch {
+            what: format!("{learner} environment spaces"),
+            expected: format!("boxes of {obs_dim} and {act_dim}"),
+            got: "other spaces".into(),
+        }),
+    }
+}
+
+/// Refuses an observation with a NaN or infinite entry, seen at `step`.
+pub(crate) fn check_observation(obs: &[f64], step: u64) -> Result<()> {
+    if obs.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::NonFinite {
+            what: "observation".into(),
+            step,
+        })
     }
 }

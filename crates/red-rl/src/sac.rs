@@ -30,7 +30,7 @@ use rand::{Rng, RngExt};
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
-use red_core::{Env, Info, Space};
+use red_core::{Env, Info};
 use red_nets::{
     Activation, Adam, AdamConfig, Init, Mlp, MlpConfig, Optimizer, Tape, clip_grad_norm, mse_loss,
 };
@@ -620,33 +620,12 @@ impl Sac {
     }
 
     fn check_observation(&self, obs: &[f64]) -> Result<()> {
-        if obs.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(Error::NonFinite {
-                what: "observation".into(),
-                step: self.env_steps,
-            })
-        }
+        crate::episodic::check_observation(obs, self.env_steps)
     }
 
     fn check_spaces<E: Env + ?Sized>(&self, env: &E) -> Result<()> {
-        match (env.observation_space(), env.action_space()) {
-            (Space::Box(o), Space::Box(a))
-                if o.dim() == self.policy.obs_dim() && a.dim() == self.policy.act_dim() =>
-            {
-                Ok(())
-            }
-            _ => Err(Error::ShapeMismatch {
-                what: "SAC environment spaces".into(),
-                expected: format!(
-                    "boxes of {} and {}",
-                    self.policy.obs_dim(),
-                    self.policy.act_dim()
-                ),
-                got: "other spaces".into(),
-            }),
-        }
+        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
+        crate::episodic::check_spaces("SAC", env, o, a)
     }
 }
 

@@ -32,7 +32,7 @@ use ndarray::{Array2, ArrayView2, Axis, concatenate, s};
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 
-use red_core::{Env, Info, Space};
+use red_core::{Env, Info};
 use red_nets::{
     Activation, Adam, AdamConfig, Gradients, Init, Mlp, MlpConfig, Optimizer, Tape, Workspace,
     clip_grad_norm, mse_loss,
@@ -761,33 +761,12 @@ impl Svg1 {
     }
 
     fn check_observation(&self, obs: &[f64]) -> Result<()> {
-        if obs.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(Error::NonFinite {
-                what: "observation".into(),
-                step: self.env_steps,
-            })
-        }
+        crate::episodic::check_observation(obs, self.env_steps)
     }
 
     fn check_spaces<E: Env + ?Sized>(&self, env: &E) -> Result<()> {
-        match (env.observation_space(), env.action_space()) {
-            (Space::Box(o), Space::Box(a))
-                if o.dim() == self.policy.obs_dim() && a.dim() == self.policy.act_dim() =>
-            {
-                Ok(())
-            }
-            _ => Err(Error::ShapeMismatch {
-                what: "SVG environment spaces".into(),
-                expected: format!(
-                    "boxes of {} and {}",
-                    self.policy.obs_dim(),
-                    self.policy.act_dim()
-                ),
-                got: "other spaces".into(),
-            }),
-        }
+        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
+        crate::episodic::check_spaces("SVG", env, o, a)
     }
 }
 
