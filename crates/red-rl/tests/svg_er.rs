@@ -378,15 +378,20 @@ fn non_finite_reward_or_observation_stops_with_what_and_step() {
     assert!(e.contains("observation") && e.contains('4'), "{e}");
 }
 
-#[test]
-fn serialised_learner_continues_identically() {
-    let config = SvgConfig {
+/// Small networks and short warm-ups, for tests of the training loop.
+fn small_config() -> SvgConfig {
+    SvgConfig {
         hidden: vec![16],
         learning_starts: 50,
         policy_delay: 50,
         batch_size: 16,
         ..SvgConfig::default()
-    };
+    }
+}
+
+#[test]
+fn serialised_learner_continues_identically() {
+    let config = small_config();
     let (mut a, mut rng_a) = fresh(2, &config);
     let mut env = Reach::default();
     a.train(
@@ -462,55 +467,36 @@ impl EpisodeHooks<Svg1, ChaCha8Rng> for SaveAndStop {
 
 #[test]
 fn hooks_stop_and_checkpoint_and_the_resumed_loop_ends_with_the_same_numbers() {
-    let config = SvgConfig {
-        hidden: vec![16],
-        learning_starts: 50,
-        policy_delay: 50,
-        batch_size: 16,
-        ..SvgConfig::default()
-    };
+    let config = small_config();
     let hooks = |stop_after| SaveAndStop {
         stop_after,
         returns: Vec::new(),
         saved: None,
     };
+    let train = |svg: &mut Svg1, rng: &mut ChaCha8Rng, hooks: &mut SaveAndStop| {
+        let flow = svg.train_with(&mut Reach::default(), 400, None, &|_| 0.0, rng, hooks);
+        flow.unwrap()
+    };
     let (mut whole, mut rng) = fresh(4, &config);
     let mut all = hooks(0);
-    let flow = whole.train_with(
-        &mut Reach::default(),
-        400,
-        None,
-        &|_| 0.0,
-        &mut rng,
-        &mut all,
+    assert_eq!(
+        train(&mut whole, &mut rng, &mut all),
+        ControlFlow::Continue(())
     );
-    assert_eq!(flow.unwrap(), ControlFlow::Continue(()));
     assert_eq!(whole.env_steps(), 400);
 
     let (mut cut, mut rng) = fresh(4, &config);
     let mut first = hooks(3);
-    let flow = cut.train_with(
-        &mut Reach::default(),
-        400,
-        None,
-        &|_| 0.0,
-        &mut rng,
-        &mut first,
+    assert_eq!(
+        train(&mut cut, &mut rng, &mut first),
+        ControlFlow::Break(())
     );
-    assert_eq!(flow.unwrap(), ControlFlow::Break(()));
     assert!(cut.env_steps() < 400);
     let (mut resumed, mut rng): (Svg1, ChaCha8Rng) =
         serde_json::from_str(first.saved.as_deref().unwrap()).unwrap();
     let mut rest = hooks(0);
-    let flow = resumed.train_with(
-        &mut Reach::default(),
-        400,
-        None,
-        &|_| 0.0,
-        &mut rng,
-        &mut rest,
-    );
-    assert_eq!(flow.unwrap(), ControlFlow::Continue(()));
+    let flow = train(&mut resumed, &mut rng, &mut rest);
+    assert_eq!(flow, ControlFlow::Continue(()));
     first.returns.extend(rest.returns);
     assert_eq!(first.returns, all.returns);
     assert_eq!(resumed.policy(), whole.policy());
