@@ -18,11 +18,12 @@
 //! the stop flag is raised; [`resume`] continues one and ends with the
 //! numbers an uninterrupted run would have given.
 
+use std::ops::ControlFlow;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use ndarray::{Array2, ArrayView2};
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use red_core::DifferentiableReward;
 use red_core::checkpoint::load_checkpoint;
@@ -35,6 +36,7 @@ use red_drive::{
     render_png,
 };
 use red_rl::bc::{BcConfig, behavior_clone};
+use red_rl::episodic::{EpisodeHooks, EpisodicLearner};
 use red_rl::gail::GailConfig;
 use red_rl::gmmil::GmmilConfig;
 use red_rl::normalize::ObsNormalizer;
@@ -314,18 +316,25 @@ impl Learner {
             Self::Sac(l) => train.learner == DriveLearner::Sac && l.config() == &train.sac,
         }
     }
+}
 
-    fn run_episode(
+impl EpisodicLearner for Learner {
+    fn env_steps(&self) -> u64 {
+        Learner::env_steps(self)
+    }
+
+    fn run_episode<E: Env + ?Sized, R: Rng + ?Sized>(
         &mut self,
-        env: &mut dyn Env,
+        env: &mut E,
         reward: &dyn DifferentiableReward,
+        reset_seed: Option<u64>,
         terminal: &dyn Fn(f64) -> f64,
         max_steps: u64,
-        rng: &mut ChaCha8Rng,
+        rng: &mut R,
     ) -> red_rl::Result<EpisodeOutcome> {
         match self {
-            Self::Svg(l) => l.run_episode(env, reward, None, terminal, max_steps, rng),
-            Self::Sac(l) => l.run_episode(env, reward, None, terminal, max_steps, rng),
+            Self::Svg(l) => l.run_episode(env, reward, reset_seed, terminal, max_steps, rng),
+            Self::Sac(l) => l.run_episode(env, reward, reset_seed, terminal, max_steps, rng),
         }
     }
 }
@@ -1108,34 +1117,136 @@ fn stack(rows: &[(Vec<f64>, Vec<f64>)]) -> (Array2<f64>, Array2<f64>) {
     (s, a)
 }
 
-/// Runs a selection check of the current policy at its step.
-fn check(run: &DriveRunConfig, st: &mut MethodState) -> Result<()> {
-    let cfg = &run.train;
-    let step = st.svg.env_steps();
-    let policy = st.svg.reported_policy();
-    let (mut own, mut dist) = (0.0, 0.0);
-    for k in 0..cfg.select_episodes {
-        let r = rollout(
-            &run.drive,
-            policy,
-            SELECT_SEED + k as u64,
-            Some((&st.reward, st.terminal.as_ref())),
-        )?;
-        own += r.own_return / cfg.select_episodes as f64;
-        dist += r.distance / cfg.select_episodes as f64;
+/// A method's side of its learner's training loop
+/// ([`EpisodicLearner::train_with`]): selection checks, a row of metrics
+/// per episode, GAIL's and GMMIL's reward updates, checkpoints (the
+/// learner with the parts of [`MethodState`] held here) and the stop flag.
+struct MethodHooks<'a> {
+    run: &'a DriveRunConfig,
+    method: &'a str,
+    reward: &'a mut ImitationReward,
+    terminal: Option<&'a TerminalHeuristic>,
+    pending: &'a mut Vec<(Vec<f64>, Vec<f64>)>,
+    recent: &'a mut Vec<f64>,
+    selection: &'a mut Selection,
+    metrics: &'a mut String,
+    curve: &'a mut Vec<(f64, f64)>,
+    checks: &'a mut Vec<(f64, f64)>,
+    next_save: u64,
+    message: String,
+    save: &'a mut dyn FnMut(MethodState) -> Result<()>,
+    stop: &'a AtomicBool,
+    progress: &'a mut dyn Progress,
+}
+
+impl MethodHooks<'_> {
+    /// Runs a selection check of the learner's policy at its step.
+    fn check(&mut self, learner: &Learner) -> Result<()> {
+        let cfg = &self.run.train;
+        let step = learner.env_steps();
+        let policy = learner.reported_policy();
+        let (mut own, mut dist) = (0.0, 0.0);
+        for k in 0..cfg.select_episodes {
+            let r = rollout(
+                &self.run.drive,
+                policy,
+                SELECT_SEED + k as u64,
+                Some((&*self.reward, self.terminal)),
+            )?;
+            own += r.own_return / cfg.select_episodes as f64;
+            dist += r.distance / cfg.select_episodes as f64;
+        }
+        self.metrics
+            .push_str(&format!("{},check,{step},{dist},{own},\n", self.method));
+        self.checks.push((step as f64, dist));
+        let sel = &mut *self.selection;
+        if sel.best_own.as_ref().is_none_or(|b| own > b.0) {
+            sel.best_own = Some((own, step, policy.clone()));
+        }
+        if sel.best_true.as_ref().is_none_or(|b| dist > b.0) {
+            sel.best_true = Some((dist, step, policy.clone()));
+        }
+        sel.next_at = step + cfg.select_every;
+        Ok(())
     }
-    st.metrics
-        .push_str(&format!("{},check,{step},{dist},{own},\n", st.method));
-    st.checks.push((step as f64, dist));
-    let sel = &mut st.selection;
-    if sel.best_own.as_ref().is_none_or(|b| own > b.0) {
-        sel.best_own = Some((own, step, policy.clone()));
+
+    /// Saves the method's whole state.
+    fn save(&mut self, learner: &Learner, rng: &ChaCha8Rng) -> Result<()> {
+        (self.save)(MethodState {
+            method: self.method.into(),
+            reward: self.reward.clone(),
+            terminal: self.terminal.cloned(),
+            svg: learner.clone(),
+            rng: rng.clone(),
+            pending: self.pending.clone(),
+            recent: self.recent.clone(),
+            selection: self.selection.clone(),
+            metrics: self.metrics.clone(),
+            curve: self.curve.clone(),
+            checks: self.checks.clone(),
+        })
     }
-    if sel.best_true.as_ref().is_none_or(|b| dist > b.0) {
-        sel.best_true = Some((dist, step, policy.clone()));
+}
+
+impl EpisodeHooks<Learner, ChaCha8Rng> for MethodHooks<'_> {
+    type Error = Error;
+
+    fn reward(&self) -> &dyn DifferentiableReward {
+        &*self.reward
     }
-    sel.next_at = step + cfg.select_every;
-    Ok(())
+
+    fn before_episode(&mut self, learner: &Learner, _: &ChaCha8Rng) -> Result<ControlFlow<()>> {
+        let every = self.run.train.select_every;
+        if every > 0 && learner.env_steps() >= self.selection.next_at {
+            self.check(learner)?;
+        }
+        Ok(ControlFlow::Continue(()))
+    }
+
+    fn after_episode(
+        &mut self,
+        learner: &Learner,
+        rng: &ChaCha8Rng,
+        ep: &EpisodeOutcome,
+    ) -> Result<ControlFlow<()>> {
+        let cfg = &self.run.train;
+        if ep.finished {
+            let e = &ep.report;
+            self.metrics.push_str(&format!(
+                "{},train,{},{},{},{}\n",
+                self.method, e.env_steps, e.true_return, e.imitation_return, e.length
+            ));
+            self.recent.push(e.true_return);
+            let k = self.recent.len().saturating_sub(10);
+            let avg = self.recent[k..].iter().sum::<f64>() / (self.recent.len() - k) as f64;
+            self.curve.push((e.env_steps as f64, avg));
+            self.message = format!("distance (last 10) {avg:.0} m");
+        }
+        let step = learner.env_steps();
+        if DifferentiableReward::is_adaptive(&*self.reward) {
+            for (s, a) in ep.states.rows().into_iter().zip(ep.actions.rows()) {
+                self.pending.push((s.to_vec(), a.to_vec()));
+            }
+            if self.pending.len() >= cfg.reward_update_pairs {
+                let (s, a) = stack(self.pending);
+                self.reward.update(s.view(), a.view()).with_context(|| {
+                    format!("updating the {} reward at step {step}", self.method)
+                })?;
+                self.pending.clear();
+            }
+        }
+        self.progress.advance(step, &self.message);
+        if self.stop.load(Ordering::SeqCst) {
+            self.progress.finish();
+            self.save(learner, rng)?;
+            return Ok(ControlFlow::Break(()));
+        }
+        if step >= self.next_save && step < cfg.steps {
+            self.save(learner, rng)?;
+            self.next_save += cfg.checkpoint_every;
+        }
+        Ok(ControlFlow::Continue(()))
+    }
 }
 
 /// Why training stopped.
@@ -1144,12 +1255,13 @@ enum Stop {
     Stopped,
 }
 
-/// Trains one SVG method from `st` until its budget, checkpointing.
+/// Trains one method from `st` until its budget with its learner's own
+/// loop, checkpointing.
 fn train_method(
     run: &DriveRunConfig,
     starts: &[CarState],
     st: &mut MethodState,
-    save: &mut dyn FnMut(&MethodState) -> Result<()>,
+    save: &mut dyn FnMut(MethodState) -> Result<()>,
     stop: &AtomicBool,
     progress: &mut dyn Progress,
 ) -> Result<Stop> {
@@ -1165,77 +1277,58 @@ fn train_method(
         cfg.steps,
         st.svg.env_steps(),
     );
-    let mut next_save = st
+    let next_save = st
         .svg
         .env_steps()
         .checked_div(cfg.checkpoint_every)
         .map_or(u64::MAX, |k| (k + 1) * cfg.checkpoint_every);
-    let method = st.method.clone();
-    let step_err = |e: red_rl::Error, step: u64| {
-        Error::from(e).context(format!(
-            "{method} training stopped at environment step {step} (the last good checkpoint, \
-             if any, is kept)"
-        ))
+    let MethodState {
+        method,
+        reward,
+        terminal,
+        svg,
+        rng,
+        pending,
+        recent,
+        selection,
+        metrics,
+        curve,
+        checks,
+    } = st;
+    let term = |r: f64| terminal.as_ref().map_or(0.0, |t| t.penalty(r));
+    let mut hooks = MethodHooks {
+        run,
+        method,
+        reward,
+        terminal: terminal.as_ref(),
+        pending,
+        recent,
+        selection,
+        metrics,
+        curve,
+        checks,
+        next_save,
+        message: String::new(),
+        save,
+        stop,
+        progress,
     };
-    let mut message = String::new();
-    while st.svg.env_steps() < cfg.steps {
-        if cfg.select_every > 0 && st.svg.env_steps() >= st.selection.next_at {
-            check(run, st)?;
-        }
-        let left = cfg.steps - st.svg.env_steps();
-        let ep = {
-            let MethodState {
-                svg,
-                reward,
-                terminal,
-                rng,
-                ..
-            } = &mut *st;
-            let term = |r: f64| terminal.as_ref().map_or(0.0, |t| t.penalty(r));
-            let at = svg.env_steps();
-            svg.run_episode(&mut env, &*reward, &term, left, rng)
-                .map_err(|e| step_err(e, at))?
-        };
-        if ep.finished {
-            let e = &ep.report;
-            st.metrics.push_str(&format!(
-                "{},train,{},{},{},{}\n",
-                st.method, e.env_steps, e.true_return, e.imitation_return, e.length
-            ));
-            st.recent.push(e.true_return);
-            let k = st.recent.len().saturating_sub(10);
-            let avg = st.recent[k..].iter().sum::<f64>() / (st.recent.len() - k) as f64;
-            st.curve.push((e.env_steps as f64, avg));
-            message = format!("distance (last 10) {avg:.0} m");
-        }
-        if DifferentiableReward::is_adaptive(&st.reward) {
-            for (s, a) in ep.states.rows().into_iter().zip(ep.actions.rows()) {
-                st.pending.push((s.to_vec(), a.to_vec()));
-            }
-            if st.pending.len() >= cfg.reward_update_pairs {
-                let (s, a) = stack(&st.pending);
-                let at = st.svg.env_steps();
-                st.reward
-                    .update(s.view(), a.view())
-                    .with_context(|| format!("updating the {} reward at step {at}", st.method))?;
-                st.pending.clear();
-            }
-        }
-        progress.advance(st.svg.env_steps(), &message);
-        if stop.load(Ordering::SeqCst) {
-            progress.finish();
-            save(st)?;
-            return Ok(Stop::Stopped);
-        }
-        if st.svg.env_steps() >= next_save && st.svg.env_steps() < cfg.steps {
-            save(st)?;
-            next_save += cfg.checkpoint_every;
-        }
+    let flow = svg
+        .train_with(&mut env, cfg.steps, None, &term, rng, &mut hooks)
+        .map_err(|e| {
+            e.context(format!(
+                "{method} training stopped at environment step {} (the last good checkpoint, \
+                 if any, is kept)",
+                svg.env_steps()
+            ))
+        })?;
+    if flow.is_break() {
+        return Ok(Stop::Stopped);
     }
     if cfg.select_every > 0 {
-        check(run, st)?;
+        hooks.check(svg)?;
     }
-    progress.finish();
+    hooks.progress.finish();
     Ok(Stop::Done)
 }
 
@@ -1494,9 +1587,9 @@ fn drive_run(
                 )?,
             };
             let stopped = {
-                let mut save = |st: &MethodState| -> Result<()> {
+                let mut save = |st: MethodState| -> Result<()> {
                     let mut c = ck.clone();
-                    c.current = Some(st.clone());
+                    c.current = Some(st);
                     c.elapsed_s = base_elapsed + started.elapsed().as_secs_f64();
                     run_dir.save_checkpoint(CHECKPOINT_KIND, &c.config, &c)?;
                     Ok(())

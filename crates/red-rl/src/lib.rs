@@ -5,6 +5,7 @@
 
 pub mod bc;
 pub mod dqn;
+pub mod episodic;
 pub mod error;
 pub mod gae;
 pub mod gail;

@@ -30,11 +30,12 @@ use rand::{Rng, RngExt};
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
-use red_core::{Env, Info, Space};
+use red_core::{Env, Info};
 use red_nets::{
     Activation, Adam, AdamConfig, Init, Mlp, MlpConfig, Optimizer, Tape, clip_grad_norm, mse_loss,
 };
 
+use crate::episodic::EpisodicLearner;
 use crate::policy::{GaussianBatch, GaussianPolicy, PolicyWorkspace};
 use crate::replay::{Batch, ReplayBuffer};
 use crate::svg::{DifferentiableReward, EpisodeOutcome, EpisodeReport};
@@ -351,7 +352,7 @@ impl Sac {
         self.replay.len()
     }
 
-    /// Environment steps seen by [`Sac::run_episode`].
+    /// Environment steps seen by [`EpisodicLearner::run_episode`].
     pub fn env_steps(&self) -> u64 {
         self.env_steps
     }
@@ -618,6 +619,21 @@ impl Sac {
         })
     }
 
+    fn check_observation(&self, obs: &[f64]) -> Result<()> {
+        crate::episodic::check_observation(obs, self.env_steps)
+    }
+
+    fn check_spaces<E: Env + ?Sized>(&self, env: &E) -> Result<()> {
+        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
+        crate::episodic::check_spaces("SAC", env, o, a)
+    }
+}
+
+impl EpisodicLearner for Sac {
+    fn env_steps(&self) -> u64 {
+        self.env_steps
+    }
+
     /// Runs one episode with the stochastic actor, at most `max_steps`
     /// environment steps, storing transitions with the imitation reward of
     /// `reward` (never the environment's) and updating after
@@ -625,12 +641,12 @@ impl Sac {
     /// the seed `reset_seed` or one drawn from `rng`. At its end
     /// `terminal(final_reward)` is added to the last stored reward (RED's
     /// terminal heuristic; `|_| 0.0` for none). The same contract as
-    /// [`crate::svg::Svg1::run_episode`].
+    /// [`Svg1`](crate::svg::Svg1)'s [`EpisodicLearner::run_episode`].
     ///
     /// # Errors
     /// Environment, shape and update errors; [`Error::NonFinite`] for a
     /// non-finite observation, reward, loss or gradient.
-    pub fn run_episode<E: Env + ?Sized, R: Rng + ?Sized>(
+    fn run_episode<E: Env + ?Sized, R: Rng + ?Sized>(
         &mut self,
         env: &mut E,
         reward: &dyn DifferentiableReward,
@@ -706,64 +722,6 @@ impl Sac {
             states: shape(o, states)?,
             actions: shape(ad, actions)?,
         })
-    }
-
-    /// Runs `steps` environment steps as a sequence of
-    /// [`Sac::run_episode`] calls; `on_episode` gets the report of every
-    /// episode that finished.
-    ///
-    /// # Errors
-    /// As [`Sac::run_episode`].
-    #[allow(clippy::too_many_arguments)]
-    pub fn train<E: Env + ?Sized, R: Rng + ?Sized>(
-        &mut self,
-        env: &mut E,
-        reward: &dyn DifferentiableReward,
-        steps: u64,
-        reset_seed: Option<u64>,
-        terminal: &dyn Fn(f64) -> f64,
-        rng: &mut R,
-        on_episode: &mut dyn FnMut(&EpisodeReport),
-    ) -> Result<()> {
-        let end = self.env_steps + steps;
-        while self.env_steps < end {
-            let left = end - self.env_steps;
-            let ep = self.run_episode(env, reward, reset_seed, terminal, left, rng)?;
-            if ep.finished {
-                on_episode(&ep.report);
-            }
-        }
-        Ok(())
-    }
-
-    fn check_observation(&self, obs: &[f64]) -> Result<()> {
-        if obs.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(Error::NonFinite {
-                what: "observation".into(),
-                step: self.env_steps,
-            })
-        }
-    }
-
-    fn check_spaces<E: Env + ?Sized>(&self, env: &E) -> Result<()> {
-        match (env.observation_space(), env.action_space()) {
-            (Space::Box(o), Space::Box(a))
-                if o.dim() == self.policy.obs_dim() && a.dim() == self.policy.act_dim() =>
-            {
-                Ok(())
-            }
-            _ => Err(Error::ShapeMismatch {
-                what: "SAC environment spaces".into(),
-                expected: format!(
-                    "boxes of {} and {}",
-                    self.policy.obs_dim(),
-                    self.policy.act_dim()
-                ),
-                got: "other spaces".into(),
-            }),
-        }
     }
 }
 

@@ -32,12 +32,13 @@ use ndarray::{Array2, ArrayView2, Axis, concatenate, s};
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 
-use red_core::{Env, Info, Space};
+use red_core::{Env, Info};
 use red_nets::{
     Activation, Adam, AdamConfig, Gradients, Init, Mlp, MlpConfig, Optimizer, Tape, Workspace,
     clip_grad_norm, mse_loss,
 };
 
+use crate::episodic::EpisodicLearner;
 use crate::policy::{GaussianPolicy, PolicyWorkspace};
 use crate::replay::{Batch, ReplayBuffer};
 use crate::{Error, Result};
@@ -256,7 +257,7 @@ pub struct UpdateStats {
     pub policy_objective: Option<f64>,
 }
 
-/// An episode finished during [`Svg1::train`].
+/// An episode finished during [`EpisodicLearner::train`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct EpisodeReport {
     /// Environment steps so far.
@@ -410,7 +411,7 @@ impl Svg1 {
         self.replay.len()
     }
 
-    /// Environment steps seen by [`Svg1::train`].
+    /// Environment steps seen by [`EpisodicLearner::run_episode`].
     pub fn env_steps(&self) -> u64 {
         self.env_steps
     }
@@ -759,6 +760,34 @@ impl Svg1 {
         }
     }
 
+    fn check_observation(&self, obs: &[f64]) -> Result<()> {
+        crate::episodic::check_observation(obs, self.env_steps)
+    }
+
+    fn check_spaces<E: Env + ?Sized>(&self, env: &E) -> Result<()> {
+        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
+        crate::episodic::check_spaces("SVG", env, o, a)
+    }
+}
+
+/// One episode of [`EpisodicLearner::run_episode`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeOutcome {
+    /// Returns, length and the last step's info.
+    pub report: EpisodeReport,
+    /// False when the step budget cut the episode short.
+    pub finished: bool,
+    /// The states visited, `(length, obs_dim)`.
+    pub states: Array2<f64>,
+    /// The actions taken, `(length, act_dim)`.
+    pub actions: Array2<f64>,
+}
+
+impl EpisodicLearner for Svg1 {
+    fn env_steps(&self) -> u64 {
+        self.env_steps
+    }
+
     /// Runs one episode with the stochastic policy, at most `max_steps`
     /// environment steps, storing transitions with the imitation reward of
     /// `reward` (never the environment's) and updating as configured. The
@@ -774,7 +803,7 @@ impl Svg1 {
     /// Environment, shape and update errors; [`Error::NonFinite`] naming a
     /// non-finite observation, imitation reward, loss or gradient and the
     /// environment step where it appeared.
-    pub fn run_episode<E: Env + ?Sized, R: Rng + ?Sized>(
+    fn run_episode<E: Env + ?Sized, R: Rng + ?Sized>(
         &mut self,
         env: &mut E,
         reward: &dyn DifferentiableReward,
@@ -871,79 +900,6 @@ impl Svg1 {
             actions: shape(ad, actions)?,
         })
     }
-
-    fn check_observation(&self, obs: &[f64]) -> Result<()> {
-        if obs.iter().all(|v| v.is_finite()) {
-            Ok(())
-        } else {
-            Err(Error::NonFinite {
-                what: "observation".into(),
-                step: self.env_steps,
-            })
-        }
-    }
-
-    fn check_spaces<E: Env + ?Sized>(&self, env: &E) -> Result<()> {
-        match (env.observation_space(), env.action_space()) {
-            (Space::Box(o), Space::Box(a))
-                if o.dim() == self.policy.obs_dim() && a.dim() == self.policy.act_dim() =>
-            {
-                Ok(())
-            }
-            _ => Err(Error::ShapeMismatch {
-                what: "SVG environment spaces".into(),
-                expected: format!(
-                    "boxes of {} and {}",
-                    self.policy.obs_dim(),
-                    self.policy.act_dim()
-                ),
-                got: "other spaces".into(),
-            }),
-        }
-    }
-
-    /// Runs `steps` environment steps as a sequence of
-    /// [`Svg1::run_episode`] calls; `on_episode` gets the report of every
-    /// episode that finished (the last one may be cut by the budget).
-    /// Episodes are reset with seeds drawn from `rng`, or every one with
-    /// `reset_seed` when given (one fixed track).
-    ///
-    /// # Errors
-    /// As [`Svg1::run_episode`].
-    #[allow(clippy::too_many_arguments)]
-    pub fn train<E: Env + ?Sized, R: Rng + ?Sized>(
-        &mut self,
-        env: &mut E,
-        reward: &dyn DifferentiableReward,
-        steps: u64,
-        reset_seed: Option<u64>,
-        terminal: &dyn Fn(f64) -> f64,
-        rng: &mut R,
-        on_episode: &mut dyn FnMut(&EpisodeReport),
-    ) -> Result<()> {
-        let end = self.env_steps + steps;
-        while self.env_steps < end {
-            let left = end - self.env_steps;
-            let ep = self.run_episode(env, reward, reset_seed, terminal, left, rng)?;
-            if ep.finished {
-                on_episode(&ep.report);
-            }
-        }
-        Ok(())
-    }
-}
-
-/// One episode of [`Svg1::run_episode`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct EpisodeOutcome {
-    /// Returns, length and the last step's info.
-    pub report: EpisodeReport,
-    /// False when the step budget cut the episode short.
-    pub finished: bool,
-    /// The states visited, `(length, obs_dim)`.
-    pub states: Array2<f64>,
-    /// The actions taken, `(length, act_dim)`.
-    pub actions: Array2<f64>,
 }
 
 fn shape_err(e: ndarray::ShapeError) -> Error {

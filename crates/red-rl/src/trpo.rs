@@ -455,28 +455,48 @@ impl TrpoTrainer {
     /// Runs iterations until at least `total_env_steps` environment steps
     /// have been taken, calling `callback` after each with the trainer (to
     /// checkpoint or evaluate) and the iteration's metrics; the callback
-    /// stops training early with `ControlFlow::Break`.
+    /// stops training early with `ControlFlow::Break`. The short form of
+    /// [`TrpoTrainer::train_with`].
     ///
     /// # Errors
     /// Any error of [`TrpoTrainer::iterate`] or of the callback.
     pub fn train<E: Env + ?Sized>(
         &mut self,
         env: &mut E,
-        mut reward: Option<&mut dyn RewardModel>,
+        reward: Option<&mut dyn RewardModel>,
         total_env_steps: u64,
-        mut callback: impl FnMut(&Self, &IterationMetrics) -> Result<ControlFlow<()>>,
+        callback: impl FnMut(&Self, &IterationMetrics) -> Result<ControlFlow<()>>,
     ) -> Result<()> {
+        // Only the callback can stop training, and it knows when it did.
+        let _ = self.train_with(env, total_env_steps, &mut Callback { reward, callback })?;
+        Ok(())
+    }
+
+    /// The training loop: runs iterations until at least `total_env_steps`
+    /// environment steps have been taken (counting those of earlier calls
+    /// and of a resumed state), with `hooks` before each iteration (to stop
+    /// or checkpoint), supplying the reward model, and after each (to
+    /// record, select or checkpoint). Returns `Break` when a hook stopped
+    /// training early.
+    ///
+    /// # Errors
+    /// Any error of [`TrpoTrainer::iterate`] or of the hooks.
+    pub fn train_with<E: Env + ?Sized, H: TrpoHooks<E> + ?Sized>(
+        &mut self,
+        env: &mut E,
+        total_env_steps: u64,
+        hooks: &mut H,
+    ) -> std::result::Result<ControlFlow<()>, H::Error> {
         while self.env_steps < total_env_steps {
-            let r: Option<&mut dyn RewardModel> = match reward {
-                Some(ref mut m) => Some(&mut **m),
-                None => None,
-            };
-            let m = self.iterate(env, r)?;
-            if callback(self, &m)?.is_break() {
-                break;
+            if hooks.before_iteration(self)?.is_break() {
+                return Ok(ControlFlow::Break(()));
+            }
+            let m = self.iterate(env, hooks.reward())?;
+            if hooks.after_iteration(self, env, &m)?.is_break() {
+                return Ok(ControlFlow::Break(()));
             }
         }
-        Ok(())
+        Ok(ControlFlow::Continue(()))
     }
 
     /// One iteration: collect a batch, update the policy and the value
@@ -489,8 +509,8 @@ impl TrpoTrainer {
     ///
     /// # Errors
     /// Dimension mismatches between the trainer and the environment, an
-    /// environment or reward-model error, or [`Error::NonFinite`] when a
-    /// reward, advantage or loss is NaN or infinite.
+    /// environment or reward-model error, or [`Error::NonFinite`] when an
+    /// observation, action, reward, advantage or loss is NaN or infinite.
     pub fn iterate<E: Env + ?Sized>(
         &mut self,
         env: &mut E,
@@ -528,8 +548,8 @@ impl TrpoTrainer {
         batch: &RolloutBatch,
         reward: Option<&mut dyn RewardModel>,
     ) -> Result<IterationMetrics> {
-        check_batch(batch, self.policy.obs_dim(), self.policy.act_dim())?;
         let step_id = self.env_steps;
+        check_batch(batch, self.policy.obs_dim(), self.policy.act_dim(), step_id)?;
         let mean_true_reward = mean(&batch.true_rewards);
         let (rewards, mean_imitation_reward) = match &reward {
             Some(model) => {
@@ -833,9 +853,77 @@ impl TrpoTrainer {
     }
 }
 
+/// What [`TrpoTrainer::train_with`] calls around its iterations. The
+/// hooks hold what a caller keeps beside the trainer (the reward model,
+/// records, a stop flag), so that they can checkpoint both together.
+pub trait TrpoHooks<E: ?Sized> {
+    /// The hooks' error; the trainer's errors convert into it.
+    type Error: From<Error>;
+
+    /// Before each iteration; `Break` ends training before it (for
+    /// example on a stop request, after saving a checkpoint).
+    ///
+    /// # Errors
+    /// The hooks' own; an error ends training.
+    fn before_iteration(
+        &mut self,
+        _trainer: &TrpoTrainer,
+    ) -> std::result::Result<ControlFlow<()>, Self::Error> {
+        Ok(ControlFlow::Continue(()))
+    }
+
+    /// The reward model of the next iteration; `None`, the default, learns
+    /// from the environment's reward.
+    fn reward(&mut self) -> Option<&mut dyn RewardModel> {
+        None
+    }
+
+    /// After each iteration, with the environment (to read what it
+    /// counts) and the iteration's metrics; `Break` ends training.
+    ///
+    /// # Errors
+    /// The hooks' own; an error ends training.
+    fn after_iteration(
+        &mut self,
+        trainer: &TrpoTrainer,
+        env: &mut E,
+        metrics: &IterationMetrics,
+    ) -> std::result::Result<ControlFlow<()>, Self::Error>;
+}
+
+/// [`TrpoTrainer::train`]'s hooks: a reward model and a callback.
+struct Callback<'r, F> {
+    reward: Option<&'r mut dyn RewardModel>,
+    callback: F,
+}
+
+impl<E: ?Sized, F> TrpoHooks<E> for Callback<'_, F>
+where
+    F: FnMut(&TrpoTrainer, &IterationMetrics) -> Result<ControlFlow<()>>,
+{
+    type Error = Error;
+
+    fn reward(&mut self) -> Option<&mut dyn RewardModel> {
+        match self.reward {
+            Some(ref mut m) => Some(&mut **m),
+            None => None,
+        }
+    }
+
+    fn after_iteration(
+        &mut self,
+        trainer: &TrpoTrainer,
+        _env: &mut E,
+        metrics: &IterationMetrics,
+    ) -> Result<ControlFlow<()>> {
+        (self.callback)(trainer, metrics)
+    }
+}
+
 /// Rejects a batch whose parts disagree (its fields are public, so one can
-/// be built by hand).
-fn check_batch(batch: &RolloutBatch, obs_dim: usize, act_dim: usize) -> Result<()> {
+/// be built by hand) or hold a NaN or infinite value; `step` is the
+/// environment step the batch ends at.
+fn check_batch(batch: &RolloutBatch, obs_dim: usize, act_dim: usize, step: u64) -> Result<()> {
     let t = batch.len();
     let b = batch.boundary_steps.len();
     let ok = t > 0
@@ -860,6 +948,19 @@ fn check_batch(batch: &RolloutBatch, obs_dim: usize, act_dim: usize) -> Result<(
                 b
             ),
         });
+    }
+    let non_finite = |what: String| Err(Error::NonFinite { what, step });
+    if let Some(i) = batch.observations.iter().position(|v| !v.is_finite()) {
+        return non_finite(format!("observation (entry {i} of the batch)"));
+    }
+    if batch.boundary_observations.iter().any(|v| !v.is_finite()) {
+        return non_finite("observation at an episode end".into());
+    }
+    if batch.true_rewards.iter().any(|v| !v.is_finite()) {
+        return non_finite("true reward".into());
+    }
+    if batch.actions.iter().any(|v| !v.is_finite()) {
+        return non_finite("action".into());
     }
     Ok(())
 }

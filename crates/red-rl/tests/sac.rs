@@ -5,6 +5,7 @@ use ndarray::{Array1, Array2, ArrayView2};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use red_core::{BoxSpace, Env, Info, Space, Step};
+use red_rl::episodic::EpisodicLearner;
 use red_rl::policy::{GaussianPolicy, GaussianPolicyConfig};
 use red_rl::sac::{Sac, SacConfig};
 use red_rl::svg::DifferentiableReward;

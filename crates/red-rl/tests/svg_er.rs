@@ -1,12 +1,15 @@
 //! SVG(1)-ER: the policy gradient through model and reward against finite
 //! differences, learning on a small reaching task, determinism.
 
+use std::ops::ControlFlow;
+
 use ndarray::{Array1, Array2, ArrayView2};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use red_core::{BoxSpace, Env, Info, Space, Step};
+use red_rl::episodic::{EpisodeHooks, EpisodicLearner};
 use red_rl::policy::{GaussianPolicy, GaussianPolicyConfig};
-use red_rl::svg::{DifferentiableReward, Svg1, SvgConfig};
+use red_rl::svg::{DifferentiableReward, EpisodeOutcome, Svg1, SvgConfig};
 
 /// Target point of the reaching task.
 pub const TARGET: [f64; 2] = [0.5, -0.3];
@@ -375,15 +378,20 @@ fn non_finite_reward_or_observation_stops_with_what_and_step() {
     assert!(e.contains("observation") && e.contains('4'), "{e}");
 }
 
-#[test]
-fn serialised_learner_continues_identically() {
-    let config = SvgConfig {
+/// Small networks and short warm-ups, for tests of the training loop.
+fn small_config() -> SvgConfig {
+    SvgConfig {
         hidden: vec![16],
         learning_starts: 50,
         policy_delay: 50,
         batch_size: 16,
         ..SvgConfig::default()
-    };
+    }
+}
+
+#[test]
+fn serialised_learner_continues_identically() {
+    let config = small_config();
     let (mut a, mut rng_a) = fresh(2, &config);
     let mut env = Reach::default();
     a.train(
@@ -423,6 +431,75 @@ fn serialised_learner_continues_identically() {
     assert_eq!(ra, rb);
     assert_eq!(a.policy(), b.policy());
     assert_eq!(a.env_steps(), b.env_steps());
+}
+
+/// Hooks that record every finished episode's return and, after
+/// `stop_after` episodes, save the learner with its random stream and stop.
+struct SaveAndStop {
+    stop_after: usize,
+    returns: Vec<f64>,
+    saved: Option<String>,
+}
+
+impl EpisodeHooks<Svg1, ChaCha8Rng> for SaveAndStop {
+    type Error = red_rl::Error;
+
+    fn reward(&self) -> &dyn DifferentiableReward {
+        &ReachReward
+    }
+
+    fn after_episode(
+        &mut self,
+        svg: &Svg1,
+        rng: &ChaCha8Rng,
+        ep: &EpisodeOutcome,
+    ) -> red_rl::Result<ControlFlow<()>> {
+        if ep.finished {
+            self.returns.push(ep.report.true_return);
+        }
+        if self.returns.len() == self.stop_after {
+            self.saved = Some(serde_json::to_string(&(svg, rng)).unwrap());
+            return Ok(ControlFlow::Break(()));
+        }
+        Ok(ControlFlow::Continue(()))
+    }
+}
+
+#[test]
+fn hooks_stop_and_checkpoint_and_the_resumed_loop_ends_with_the_same_numbers() {
+    let config = small_config();
+    let hooks = |stop_after| SaveAndStop {
+        stop_after,
+        returns: Vec::new(),
+        saved: None,
+    };
+    let train = |svg: &mut Svg1, rng: &mut ChaCha8Rng, hooks: &mut SaveAndStop| {
+        let flow = svg.train_with(&mut Reach::default(), 400, None, &|_| 0.0, rng, hooks);
+        flow.unwrap()
+    };
+    let (mut whole, mut rng) = fresh(4, &config);
+    let mut all = hooks(0);
+    assert_eq!(
+        train(&mut whole, &mut rng, &mut all),
+        ControlFlow::Continue(())
+    );
+    assert_eq!(whole.env_steps(), 400);
+
+    let (mut cut, mut rng) = fresh(4, &config);
+    let mut first = hooks(3);
+    assert_eq!(
+        train(&mut cut, &mut rng, &mut first),
+        ControlFlow::Break(())
+    );
+    assert!(cut.env_steps() < 400);
+    let (mut resumed, mut rng): (Svg1, ChaCha8Rng) =
+        serde_json::from_str(first.saved.as_deref().unwrap()).unwrap();
+    let mut rest = hooks(0);
+    let flow = train(&mut resumed, &mut rng, &mut rest);
+    assert_eq!(flow, ControlFlow::Continue(()));
+    first.returns.extend(rest.returns);
+    assert_eq!(first.returns, all.returns);
+    assert_eq!(resumed.policy(), whole.policy());
 }
 
 #[test]

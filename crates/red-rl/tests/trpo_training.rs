@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use red_core::{BoxSpace, Env, Info, RewardModel, Space, Step, TimeLimit};
 use red_nets::Workspace;
 use red_rl::rollout::{evaluate, evaluate_sampled};
-use red_rl::trpo::{IterationMetrics, TrpoConfig, TrpoTrainer};
+use red_rl::trpo::{IterationMetrics, TrpoConfig, TrpoHooks, TrpoTrainer};
 
 /// A point on a line that must reach a target: observation `[x, target]`,
 /// action `u` in `[-1, 1]` moves `x` by `0.2 u`, reward `-|x - target|`.
@@ -275,6 +275,97 @@ fn malformed_batch_is_refused() {
     batch.boundary_steps.clear();
     let err = t.update(&batch, None).unwrap_err().to_string();
     assert!(err.contains("rollout batch"), "{err}");
+}
+
+#[test]
+fn non_finite_batch_is_refused_naming_what_and_when() {
+    let mut t = TrpoTrainer::new(small_config(), 2, 1, None, 4).unwrap();
+    let mut env = Reach::new();
+    let good = t.collect(&mut env).unwrap();
+    let mut batch = good.clone();
+    batch.observations[[5, 1]] = f64::NAN;
+    let err = t.update(&batch, None).unwrap_err().to_string();
+    assert!(err.contains("observation") && err.contains("1024"), "{err}");
+    let mut batch = good.clone();
+    batch.true_rewards[7] = f64::INFINITY;
+    let err = t.update(&batch, None).unwrap_err().to_string();
+    assert!(err.contains("true reward"), "{err}");
+    let mut batch = good;
+    batch.actions[[3, 0]] = f64::NAN;
+    let err = t.update(&batch, None).unwrap_err().to_string();
+    assert!(err.contains("action"), "{err}");
+}
+
+/// Hooks that stop before iteration `stop_before` and record every
+/// iteration's metrics and the reward model's calls.
+struct Recorder {
+    stop_before: u64,
+    seen: Vec<IterationMetrics>,
+    reward: Option<Shaped>,
+}
+
+impl<E: ?Sized> TrpoHooks<E> for Recorder {
+    type Error = red_rl::Error;
+
+    fn before_iteration(&mut self, t: &TrpoTrainer) -> red_rl::Result<ControlFlow<()>> {
+        Ok(if t.iteration() + 1 == self.stop_before {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        })
+    }
+
+    fn reward(&mut self) -> Option<&mut dyn RewardModel> {
+        self.reward.as_mut().map(|r| r as &mut dyn RewardModel)
+    }
+
+    fn after_iteration(
+        &mut self,
+        _t: &TrpoTrainer,
+        _env: &mut E,
+        m: &IterationMetrics,
+    ) -> red_rl::Result<ControlFlow<()>> {
+        self.seen.push(m.clone());
+        Ok(ControlFlow::Continue(()))
+    }
+}
+
+#[test]
+fn hooks_stop_training_and_a_resumed_trainer_ends_with_the_same_numbers() {
+    let (full, full_state) = run(13, 4);
+    let mut t = TrpoTrainer::new(small_config(), 2, 1, None, 13).unwrap();
+    let mut env = Reach::new();
+    let mut hooks = Recorder {
+        stop_before: 3,
+        seen: Vec::new(),
+        reward: None,
+    };
+    let flow = t.train_with(&mut env, 4 * 1024, &mut hooks).unwrap();
+    assert_eq!(flow, ControlFlow::Break(()));
+    assert_eq!(t.iteration(), 2);
+    let mut resumed = TrpoTrainer::from_json(&t.to_json().unwrap()).unwrap();
+    hooks.stop_before = 0;
+    let flow = resumed
+        .train_with(&mut Reach::new(), 4 * 1024, &mut hooks)
+        .unwrap();
+    assert_eq!(flow, ControlFlow::Continue(()));
+    assert_eq!(hooks.seen, full);
+    assert_eq!(resumed.to_json().unwrap(), full_state);
+}
+
+#[test]
+fn hooks_supply_the_reward_model() {
+    let mut t = TrpoTrainer::new(small_config(), 2, 1, None, 2).unwrap();
+    let mut hooks = Recorder {
+        stop_before: 0,
+        seen: Vec::new(),
+        reward: Some(Shaped { updates: 0 }),
+    };
+    let flow = t.train_with(&mut Reach::new(), 2 * 1024, &mut hooks);
+    assert_eq!(flow.unwrap(), ControlFlow::Continue(()));
+    assert_eq!(hooks.seen.len(), 2);
+    assert!(hooks.seen.iter().all(|m| m.mean_imitation_reward.is_some()));
+    assert_eq!(hooks.reward.unwrap().updates, 2);
 }
 
 #[test]

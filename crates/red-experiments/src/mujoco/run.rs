@@ -20,6 +20,7 @@
 
 use std::collections::VecDeque;
 use std::io::BufRead;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -36,7 +37,7 @@ use red_rl::gmmil::GmmilConfig;
 use red_rl::normalize::{DEFAULT_CLIP, DEFAULT_MIN_STD, ObsNormalizer};
 use red_rl::policy::GaussianPolicy;
 use red_rl::rollout::{EvalReport, evaluate, evaluate_sampled};
-use red_rl::trpo::{IterationMetrics, TrpoConfig, TrpoTrainer};
+use red_rl::trpo::{IterationMetrics, TrpoConfig, TrpoHooks, TrpoTrainer};
 use red_support::{AutoencoderConfig, ExpertScores, RedRewardConfig, RndConfig, Sigma1};
 use serde::{Deserialize, Serialize};
 
@@ -339,6 +340,17 @@ struct RunState {
     /// MuJoCo warnings counted so far, by MuJoCo's warning index.
     mujoco_warnings: [u64; MJ_N_WARNING],
     /// Wall time spent in earlier sessions of the run.
+    wall_s: f64,
+}
+
+/// [`RunState`] written from its parts while the trainer trains.
+#[derive(Serialize)]
+struct RunStateRef<'a> {
+    trainer: &'a TrpoTrainer,
+    reward: &'a Option<ImitationReward>,
+    recent: &'a VecDeque<f64>,
+    best: &'a Option<BestRecord>,
+    mujoco_warnings: &'a [u64; MJ_N_WARNING],
     wall_s: f64,
 }
 
@@ -646,25 +658,120 @@ fn fresh_state(
     })
 }
 
-fn check_batch_finite(batch: &red_rl::rollout::RolloutBatch, step: u64) -> Result<()> {
-    let non_finite = |what: String| {
-        Err(Error::NonFinite {
-            what: format!("{what} in the batch ending at env step {step}"),
-        })
-    };
-    if let Some(i) = batch.observations.iter().position(|v| !v.is_finite()) {
-        return non_finite(format!("observation (entry {i} of the batch)"));
+/// The run's side of TRPO's training loop ([`TrpoTrainer::train_with`]):
+/// the stop flag, a row of `metrics.csv` per iteration, the best window,
+/// MuJoCo's warnings and the checkpoints, which hold the trainer with
+/// these.
+struct RunHooks<'a> {
+    cfg: &'a RunConfig,
+    rd: &'a RunDir,
+    stop: &'a AtomicBool,
+    progress: &'a mut dyn Progress,
+    session: Instant,
+    /// Wall time of earlier sessions.
+    wall_before: f64,
+    /// `metrics.csv`, rewritten whole (atomically) after every iteration,
+    /// never appended to: a failed write leaves the previous file intact.
+    metrics: String,
+    reward: Option<ImitationReward>,
+    recent: VecDeque<f64>,
+    best: Option<BestRecord>,
+    mujoco_warnings: [u64; MJ_N_WARNING],
+}
+
+impl RunHooks<'_> {
+    fn save(&mut self, trainer: &TrpoTrainer) -> Result<()> {
+        self.rd.write("metrics.csv", self.metrics.as_bytes())?;
+        let state = RunStateRef {
+            trainer,
+            reward: &self.reward,
+            recent: &self.recent,
+            best: &self.best,
+            mujoco_warnings: &self.mujoco_warnings,
+            wall_s: self.wall_before + self.session.elapsed().as_secs_f64(),
+        };
+        let settings = checkpoint_settings(self.cfg);
+        self.rd.save_checkpoint(CHECKPOINT_KIND, &settings, &state)
     }
-    if batch.boundary_observations.iter().any(|v| !v.is_finite()) {
-        return non_finite("observation at an episode end".into());
+}
+
+impl TrpoHooks<WatchedEnv> for RunHooks<'_> {
+    type Error = Error;
+
+    fn before_iteration(&mut self, trainer: &TrpoTrainer) -> Result<ControlFlow<()>> {
+        if !self.stop.load(Ordering::SeqCst) {
+            return Ok(ControlFlow::Continue(()));
+        }
+        self.save(trainer)?;
+        self.progress.note(&format!(
+            "stopped at env step {} (iteration {}); checkpoint saved in {}",
+            trainer.env_steps(),
+            trainer.iteration(),
+            self.rd.path().display()
+        ));
+        self.progress.finish();
+        Ok(ControlFlow::Break(()))
     }
-    if batch.true_rewards.iter().any(|v| !v.is_finite()) {
-        return non_finite("true reward".into());
+
+    fn reward(&mut self) -> Option<&mut dyn RewardModel> {
+        self.reward.as_mut().map(|r| r as &mut dyn RewardModel)
     }
-    if batch.actions.iter().any(|v| !v.is_finite()) {
-        return non_finite("action".into());
+
+    fn after_iteration(
+        &mut self,
+        trainer: &TrpoTrainer,
+        env: &mut WatchedEnv,
+        m: &IterationMetrics,
+    ) -> Result<ControlFlow<()>> {
+        let (cfg, step) = (self.cfg, trainer.env_steps());
+        let fresh = env.take_warnings();
+        if fresh.iter().any(|&n| n > 0) {
+            self.progress.note(&format!(
+                "MuJoCo warnings in the batch ending at env step {step}: {} (the simulation was reset by MuJoCo; check the actions and the model)",
+                describe_warnings(&fresh)
+            ));
+            for i in 0..MJ_N_WARNING {
+                self.mujoco_warnings[i] += fresh[i];
+            }
+        }
+        for &r in &m.true_returns {
+            self.recent.push_back(r);
+            if self.recent.len() > cfg.best_window {
+                self.recent.pop_front();
+            }
+        }
+        let window = (!self.recent.is_empty())
+            .then(|| self.recent.iter().sum::<f64>() / self.recent.len() as f64);
+        if let Some(w) = window
+            && !m.true_returns.is_empty()
+            && self.best.as_ref().is_none_or(|b| w > b.mean_true_return)
+        {
+            save_policy(&self.rd.file("best_policy.json"), trainer.policy())?;
+            self.best = Some(BestRecord {
+                mean_true_return: w,
+                env_steps: step,
+                iteration: m.iteration,
+            });
+        }
+        let total_warnings: u64 = self.mujoco_warnings.iter().sum();
+        let wall = self.wall_before + self.session.elapsed().as_secs_f64();
+        self.metrics
+            .push_str(&metrics_row(m, window, total_warnings, wall));
+        self.rd.write("metrics.csv", self.metrics.as_bytes())?;
+        let msg = format!(
+            "return(last {}) {}{}",
+            cfg.best_window,
+            window.map_or("-".into(), |w| format!("{w:.1}")),
+            m.mean_imitation_reward
+                .map_or(String::new(), |r| format!(", imitation reward/step {r:.3}"))
+        );
+        if m.iteration.is_multiple_of(cfg.checkpoint_every) {
+            self.save(trainer)?;
+            self.progress.note(&format!("env step {step}: {msg}"));
+        }
+        self.progress.advance(step.min(cfg.steps), &msg);
+        Ok(ControlFlow::Continue(()))
     }
-    Ok(())
 }
 
 /// How [`run_with`] treats the run folder.
@@ -903,7 +1010,7 @@ pub fn run_with(
         // Finished earlier with this budget: nothing to redo.
         return Ok(Outcome::Finished);
     }
-    let mut state = match state {
+    let state = match state {
         Some(s) => s,
         None => {
             let s = fresh_state(&cfg, demos.as_ref(), od, ad)?;
@@ -924,112 +1031,59 @@ pub fn run_with(
             s
         }
     };
-    // metrics.csv is rewritten whole (atomically) after every iteration,
-    // never appended to: a failed write leaves the previous file intact.
-    let metrics_path = rd.file("metrics.csv");
-    let mut metrics = truncate_metrics(&metrics_path, state.trainer.iteration())?;
-
+    let RunState {
+        mut trainer,
+        reward,
+        recent,
+        best,
+        mujoco_warnings,
+        wall_s: wall_before,
+    } = state;
     progress.start(
         &format!("{} {}", super::short_name(cfg.env), cfg.method.name()),
         cfg.steps,
-        state.trainer.env_steps().min(cfg.steps),
+        trainer.env_steps().min(cfg.steps),
     );
-    let wall_before = state.wall_s;
-    let save = |state: &mut RunState, metrics: &mut String| {
-        state.wall_s = wall_before + session.elapsed().as_secs_f64();
-        rd.write("metrics.csv", metrics.as_bytes())?;
-        rd.save_checkpoint(CHECKPOINT_KIND, &checkpoint_settings(&cfg), &*state)?;
-        Ok::<(), Error>(())
+    let mut hooks = RunHooks {
+        cfg: &cfg,
+        rd: &rd,
+        stop,
+        progress: &mut *progress,
+        session,
+        wall_before,
+        metrics: truncate_metrics(&rd.file("metrics.csv"), trainer.iteration())?,
+        reward,
+        recent,
+        best,
+        mujoco_warnings,
     };
-
-    while state.trainer.env_steps() < cfg.steps {
-        let it = state.trainer.iteration();
-        if stop.load(Ordering::SeqCst) {
-            save(&mut state, &mut metrics)?;
-            progress.note(&format!(
-                "stopped at env step {} (iteration {it}); checkpoint saved in {}",
-                state.trainer.env_steps(),
-                dir.display()
-            ));
-            progress.finish();
-            return Ok(Outcome::Interrupted);
-        }
-        let batch = state.trainer.collect(&mut env).with_context(|| {
+    let flow = trainer
+        .train_with(&mut env, cfg.steps, &mut hooks)
+        .with_context(|| {
             format!(
-                "collecting the batch ending at env step {} (last good checkpoint kept: {})",
-                state.trainer.env_steps() + cfg.trpo.steps_per_batch as u64,
+                "TRPO iteration {}, the batch ending at env step {} (last good checkpoint kept: {})",
+                trainer.iteration() + 1,
+                (trainer.iteration() + 1) * cfg.trpo.steps_per_batch as u64,
                 rd.file("checkpoint.json").display()
             )
         })?;
-        let step = state.trainer.env_steps();
-        check_batch_finite(&batch, step).with_context(|| {
-            format!(
-                "last good checkpoint kept: {}",
-                rd.file("checkpoint.json").display()
-            )
-        })?;
-        let reward = state.reward.as_mut().map(|r| r as &mut dyn RewardModel);
-        let m = state.trainer.update(&batch, reward).with_context(|| {
-            format!(
-                "TRPO update at env step {step} (last good checkpoint kept: {})",
-                rd.file("checkpoint.json").display()
-            )
-        })?;
-        let fresh = env.take_warnings();
-        if fresh.iter().any(|&n| n > 0) {
-            progress.note(&format!(
-                "MuJoCo warnings in the batch ending at env step {step}: {} (the simulation was reset by MuJoCo; check the actions and the model)",
-                describe_warnings(&fresh)
-            ));
-            for i in 0..MJ_N_WARNING {
-                state.mujoco_warnings[i] += fresh[i];
-            }
-        }
-        for &r in &m.true_returns {
-            state.recent.push_back(r);
-            if state.recent.len() > cfg.best_window {
-                state.recent.pop_front();
-            }
-        }
-        let window = (!state.recent.is_empty())
-            .then(|| state.recent.iter().sum::<f64>() / state.recent.len() as f64);
-        if let Some(w) = window
-            && !m.true_returns.is_empty()
-            && state.best.as_ref().is_none_or(|b| w > b.mean_true_return)
-        {
-            save_policy(&rd.file("best_policy.json"), state.trainer.policy())?;
-            state.best = Some(BestRecord {
-                mean_true_return: w,
-                env_steps: step,
-                iteration: m.iteration,
-            });
-        }
-        let total_warnings: u64 = state.mujoco_warnings.iter().sum();
-        let wall = wall_before + session.elapsed().as_secs_f64();
-        metrics.push_str(&metrics_row(&m, window, total_warnings, wall));
-        rd.write("metrics.csv", metrics.as_bytes())?;
-        let msg = format!(
-            "return(last {}) {}{}",
-            cfg.best_window,
-            window.map_or("-".into(), |w| format!("{w:.1}")),
-            m.mean_imitation_reward
-                .map_or(String::new(), |r| format!(", imitation reward/step {r:.3}"))
-        );
-        if m.iteration.is_multiple_of(cfg.checkpoint_every) {
-            save(&mut state, &mut metrics)?;
-            progress.note(&format!("env step {step}: {msg}"));
-        }
-        progress.advance(step.min(cfg.steps), &msg);
+    if flow.is_break() {
+        return Ok(Outcome::Interrupted);
     }
-    save(&mut state, &mut metrics)?;
-    drop(metrics);
+    hooks.save(&trainer)?;
+    let RunHooks {
+        reward,
+        best,
+        mujoco_warnings,
+        ..
+    } = hooks;
 
     // Final policy and evaluations.
-    let policy = state.trainer.policy().clone();
+    let policy = trainer.policy().clone();
     save_policy(&rd.file("policy.json"), &policy)?;
     let eval_seed = Seeder::new(cfg.seed).derive(Stream::Eval);
     let mut eval_env = WatchedEnv::new(cfg.env)?;
-    progress.advance(state.trainer.env_steps().min(cfg.steps), "evaluating");
+    progress.advance(trainer.env_steps().min(cfg.steps), "evaluating");
     let final_report = evaluate(
         &mut eval_env,
         &policy,
@@ -1037,9 +1091,9 @@ pub fn run_with(
         None,
         &mut ChaCha8Rng::seed_from_u64(eval_seed),
     )?;
-    let steps_done = state.trainer.env_steps();
+    let steps_done = trainer.env_steps();
     let final_eval = EvalSummary::new("final", steps_done, &final_report);
-    let (best_eval, best_policy) = match &state.best {
+    let (best_eval, best_policy) = match &best {
         Some(b) if rd.file("best_policy.json").is_file() => {
             let bp = GaussianPolicy::load(&rd.file("best_policy.json"))?;
             let r = evaluate(
@@ -1060,7 +1114,7 @@ pub fn run_with(
         }
         _ => (None, None),
     };
-    let demo_mean_imitation_reward = match (&state.reward, &demos) {
+    let demo_mean_imitation_reward = match (&reward, &demos) {
         (Some(ImitationReward::Support(r)), Some(d)) => {
             let (es, ea) = d.pairs();
             Some(r.rewards(es.view(), ea.view())?.mean().unwrap_or(f64::NAN))
@@ -1079,7 +1133,7 @@ pub fn run_with(
             .and_then(|d| d.returns())
             .map(|r| r.iter().sum::<f64>() / r.len().max(1) as f64),
         demo_mean_imitation_reward,
-        mujoco_warnings: state.mujoco_warnings.iter().sum(),
+        mujoco_warnings: mujoco_warnings.iter().sum(),
         wall_s: wall_before + session.elapsed().as_secs_f64(),
         expert_choice: None,
         demo_returns: None,
@@ -1643,22 +1697,6 @@ mod tests {
         ] {
             assert!(keys.contains(&k), "{k} missing from {keys:?}");
         }
-    }
-
-    #[test]
-    fn non_finite_batches_are_refused_naming_what_and_when() {
-        let mut env = WatchedEnv::new(EnvId::Reacher).unwrap();
-        let cfg = RunConfig::for_task(EnvId::Reacher, Method::Expert);
-        let mut trainer = TrpoTrainer::new(cfg.trpo, 10, 2, None, 0).unwrap();
-        let mut batch = trainer.collect(&mut env).unwrap();
-        check_batch_finite(&batch, 1024).unwrap();
-        batch.observations[[5, 3]] = f64::NAN;
-        let e = check_batch_finite(&batch, 1024).unwrap_err().to_string();
-        assert!(e.contains("observation") && e.contains("1024"), "{e}");
-        batch.observations[[5, 3]] = 0.0;
-        batch.true_rewards[7] = f64::INFINITY;
-        let e = check_batch_finite(&batch, 2048).unwrap_err().to_string();
-        assert!(e.contains("reward") && e.contains("2048"), "{e}");
     }
 
     #[test]
