@@ -7,8 +7,8 @@ Every file under BASE and NEW (same relative paths) is compared as bytes
 after removing what legitimately differs between two runs of the same
 settings:
   - the `wall_s` column of CSV files (e.g. metrics.csv);
-  - the value of every `"wall_s": <number>` in JSON files (eval.json,
-    checkpoint.json);
+  - the value of every `"wall_s": <number>` and `"wall_time_s": <number>`
+    in JSON files (eval.json, checkpoint.json);
   - the folder itself: occurrences of BASE's and NEW's absolute paths are
     replaced by `<ROOT>` (config.json records the demo file's path).
 Nothing else is normalised: a different number anywhere is a difference.
@@ -27,7 +27,7 @@ import os
 import re
 import sys
 
-WALL_JSON = re.compile(rb'("wall_s"\s*:\s*)-?[0-9][0-9.eE+-]*')
+WALL_JSON = re.compile(rb'("wall_s"\s*:\s*|"wall_time_s"\s*:\s*)-?[0-9][0-9.eE+-]*')
 
 
 def files_under(root):

@@ -36,6 +36,8 @@ for side in old new; do
       --config "$out/small.json" --out-dir "$dir" --name hopper-$m --demo "$dir/expert-hopper/demos.json" > "$dir/train-$m.log" 2>&1
   done
 done
-# drive's eval.json gained fields in 2026-12 (unseen roads, the demo's
-# road); metrics.csv holds every training number.
-python3 scripts/compare-runs.py "$out/old" "$out/new" --only metrics.csv,final.csv,learned_reward.csv,results.md,policy.json
+# eval.json (drive, MuJoCo) is compared too, apart from its wall times; an
+# OLD_BIN from before 2026-12 writes a drive eval.json without the unseen
+# roads and the demo's road: ONLY=metrics.csv,final.csv,... leaves it out.
+only=${ONLY:-metrics.csv,eval.json,final.csv,learned_reward.csv,results.md,policy.json}
+python3 scripts/compare-runs.py "$out/old" "$out/new" --only "$only"
