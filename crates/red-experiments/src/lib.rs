@@ -28,6 +28,7 @@ pub mod checks;
 pub mod doctor;
 pub mod drive;
 pub mod error;
+pub mod grid;
 pub mod imitation;
 pub mod mujoco;
 pub mod plot;

@@ -31,6 +31,7 @@ use red_support::{
     AutoencoderConfig, ExpertScores, RedReward, RedRewardConfig, RndConfig, SupportModel,
 };
 
+use crate::grid::OnFailure;
 use crate::imitation::{ImitationReward, RewardSettings, fit_reward};
 use crate::plot::{Panel, Series, draw_panels, mean_std};
 use crate::{Error, Progress, Result, ResultExt, RunDir};
@@ -583,60 +584,38 @@ fn run_grid(
         config: config.clone(),
         results: finished,
     });
-    let failures: Mutex<Vec<Error>> = Mutex::new(Vec::new());
-    let failed = AtomicBool::new(false);
-    let next = AtomicUsize::new(0);
     let poisoned = || Error::InvalidConfig {
         field: "threads".into(),
         reason: "a worker thread panicked".into(),
     };
-    std::thread::scope(|scope| {
-        for _ in 0..threads {
-            scope.spawn(|| {
-                loop {
-                    if stop.load(Ordering::SeqCst) || failed.load(Ordering::SeqCst) {
-                        break;
-                    }
-                    let i = next.fetch_add(1, Ordering::SeqCst);
-                    let Some(job) = jobs.get(i) else { break };
-                    let done_before = state
-                        .lock()
-                        .map(|s| s.results[i].is_some())
-                        .unwrap_or(false);
-                    if done_before {
-                        continue;
-                    }
-                    let on_eval = || {
-                        let d = evals_done.fetch_add(1, Ordering::SeqCst) + 1;
-                        if let Ok(mut p) = progress.lock() {
-                            p.advance(d as u64, "");
-                        }
-                    };
-                    let outcome = run_one(&config, job, &on_eval)
-                        .with_context(|| {
-                            format!("run {} n={} seed={}", job.method.label(), job.n, job.seed)
-                        })
-                        .and_then(|r| {
-                            let mut s = state.lock().map_err(|_| poisoned())?;
-                            s.results[i] = Some(r);
-                            dir.save_checkpoint(CHECKPOINT_KIND, &config, &*s)?;
-                            Ok(())
-                        });
-                    if let Err(e) = outcome {
-                        if let Ok(mut f) = failures.lock() {
-                            f.push(e);
-                        }
-                        // Stop the other workers too; what finished is saved.
-                        failed.store(true, Ordering::SeqCst);
-                        break;
-                    }
-                }
-            });
+    // The first failure stops the other workers; what finished is saved.
+    let failures = crate::grid::run_pool(jobs.len(), threads, stop, OnFailure::StopAll, |i| {
+        let job = &jobs[i];
+        let done_before = state
+            .lock()
+            .map(|s| s.results[i].is_some())
+            .unwrap_or(false);
+        if done_before {
+            return Ok(());
         }
+        let on_eval = || {
+            let d = evals_done.fetch_add(1, Ordering::SeqCst) + 1;
+            if let Ok(mut p) = progress.lock() {
+                p.advance(d as u64, "");
+            }
+        };
+        run_one(&config, job, &on_eval)
+            .with_context(|| format!("run {} n={} seed={}", job.method.label(), job.n, job.seed))
+            .and_then(|r| {
+                let mut s = state.lock().map_err(|_| poisoned())?;
+                s.results[i] = Some(r);
+                dir.save_checkpoint(CHECKPOINT_KIND, &config, &*s)?;
+                Ok(())
+            })
     });
+    let failures: Vec<Error> = failures.into_iter().map(|(_, e)| e).collect();
     let progress = progress.into_inner().map_err(|_| poisoned())?;
     progress.finish();
-    let failures = failures.into_inner().map_err(|_| poisoned())?;
     let state = state.into_inner().map_err(|_| poisoned())?;
     let saved = state.results.iter().filter(|r| r.is_some()).count();
     if let Some(e) = failures.into_iter().next() {

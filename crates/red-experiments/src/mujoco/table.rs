@@ -8,10 +8,9 @@
 //! the grid can be rerun until it is complete. The table is built from
 //! whatever runs have finished and says which cells are missing.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use red_mujoco::EnvId;
@@ -19,6 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::run::{self, EvalFile, Outcome, RunConfig};
 use super::{Method, default_demo, expert_dir, short_name};
+use crate::grid::OnFailure;
 use crate::plot::{Panel, Series, draw_panels, mean_std};
 use crate::{Error, Progress, Result};
 
@@ -247,7 +247,7 @@ pub fn run_grid(
     let root = cfg.root();
     let runs = root.join("runs");
     std::fs::create_dir_all(&runs).map_err(|source| Error::Io { path: runs, source })?;
-    let mut jobs = VecDeque::new();
+    let mut jobs = Vec::new();
     for &env in &cfg.envs {
         let demo = default_demo(cfg.experts_dir(), env);
         if !demo.is_file() {
@@ -267,33 +267,16 @@ pub fn run_grid(
         jobs.len(),
         root.display()
     ));
-    let queue = Mutex::new(jobs);
-    let failures = Mutex::new(Vec::<String>::new());
-    std::thread::scope(|scope| {
-        for _ in 0..jobs_n {
-            scope.spawn(|| {
-                loop {
-                    if stop.load(Ordering::SeqCst) {
-                        break;
-                    }
-                    let job = match queue.lock() {
-                        Ok(mut q) => q.pop_front(),
-                        Err(_) => None,
-                    };
-                    let Some(job) = job else { break };
-                    if let Err(e) = run_job(&job, cfg, stop, progress) {
-                        let msg = format!("{}: {e}", job.dir.display());
-                        progress.note(&format!("run failed: {msg}"));
-                        if let Ok(mut f) = failures.lock() {
-                            f.push(msg);
-                        }
-                    }
-                }
-            });
-        }
+    let failures = crate::grid::run_pool(jobs.len(), jobs_n, stop, OnFailure::Continue, |i| {
+        let job = &jobs[i];
+        run_job(job, cfg, stop, progress).map_err(|e| {
+            let msg = format!("{}: {e}", job.dir.display());
+            progress.note(&format!("run failed: {msg}"));
+            msg
+        })
     });
     Ok(GridOutcome {
-        failures: failures.into_inner().unwrap_or_default(),
+        failures: failures.into_iter().map(|(_, m)| m).collect(),
         interrupted: stop.load(Ordering::SeqCst),
     })
 }
