@@ -24,10 +24,13 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+use ndarray::Array2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use red_core::checkpoint::{load_checkpoint_for, write_atomic};
-use red_core::{Demos, Env, RewardModel, Seeder, Space, Stream, record_episode};
+use red_core::{
+    BoxSpace, ClippedActions, Demos, Env, RewardModel, Seeder, Space, Stream, record_episode,
+};
 use red_mujoco::watched::MJ_N_WARNING;
 use red_mujoco::{EnvId, MujocoEnv, WatchedEnv, describe_warnings};
 use red_rl::bc::{BcConfig, behavior_clone};
@@ -67,7 +70,7 @@ pub struct RunConfig {
     pub demo: Option<PathBuf>,
     /// TRPO's settings. Default: the release's (gamma 0.99 for Reacher),
     /// except that a `red` run with a BC warm start starts its policy's
-    /// log-std at -1 (sigma ~0.37) on HalfCheetah and Walker2d and at -2
+    /// log-std at -1 (sigma ~0.37) on Hopper, HalfCheetah and Walker2d and at -2
     /// (sigma ~0.14) on Ant, instead of 0. Measured reason: with a wide
     /// Gaussian the sampled actions of the warm-started policy are mostly
     /// noise and TRPO drifts away from the cloned gait before it has seen
@@ -113,6 +116,17 @@ pub struct RunConfig {
     /// slowed after 2.3M and ended at 859.98); seed 0 ended at 3668.34.
     /// With reward 0.5: seed 0 3755.45, seed 1 3890.00 (expert 3630.28).
     pub sigma1: Sigma1,
+    /// Whether the imitation reward sees actions clipped to the task's
+    /// action space: the demonstrations' actions are clipped before the
+    /// reward is fitted (and `sigma1` calibrated), and the policy's sampled
+    /// actions before they are scored, as the environment executes them.
+    /// Default: false (the reward sees the demonstrations' actions as
+    /// stored and the policy's unclipped draws). Measured reason (RED on
+    /// Hopper, 4 deterministic demos of a 3687 expert stored raw, 40.5% of
+    /// the action entries outside [-1, 1], 2M steps, seed 0, no warm
+    /// start): 1602.77 unclipped, 945.21 clipped; docs/results/mujoco.md,
+    /// "RED on demos with raw actions: diagnosis (session 25)".
+    pub reward_clips_actions: bool,
     /// GAIL's discriminator (OpenAI baselines' settings).
     pub gail: GailConfig,
     /// GMMIL's kernels (the release's median rule).
@@ -122,13 +136,21 @@ pub struct RunConfig {
     pub bc: BcConfig,
     /// Epochs of the behaviour-cloning warm start before TRPO; 0 for none.
     /// Default: 100 for `red` on HalfCheetah, Ant (the paper warm-starts
-    /// these two) and Walker2d (our addition), as the `bc` method: cloning
+    /// these two), Walker2d and Hopper (our additions), as the `bc` method: cloning
     /// until its loss flattens; as the release, 20 and 10 on HalfCheetah and
     /// Ant for `ae`; none elsewhere (the paper: GAIL and GMMIL start from a
     /// random policy). Measured on HalfCheetah at 1M steps (RED, width 128,
     /// standardised input, seed 0): warm start 20 and log-std 0: 625; 100
     /// and 0: 1365; 20 and -1: 1472; 100 and -1: 1631. Walker2d at 5M: no
     /// warm start 3881 (76.8% of the expert), warm start 5099 (100.9%).
+    /// Hopper (issue 21, 2M steps, seed 0; 4 deterministic demos of a
+    /// second expert, 3682 per episode): without a warm start the policy's
+    /// std collapsed within 150k steps onto a hop that falls after ~100
+    /// steps (imitation reward 0.72 per step) and the run ended at 532.92
+    /// with the demo actions clipped, 1602.77 stored raw; with the warm
+    /// start 3603.68 and 3586.55 (BC alone 2146.55 and 2415.84). See
+    /// docs/results/mujoco.md, "RED on demos with raw actions: diagnosis
+    /// (session 25)".
     pub bc_warm_start_epochs: usize,
     /// Epochs of the `bc` method. Default 100 (our choice: the release does
     /// not report BC alone on MuJoCo; 100 epochs over 4000 pairs is about
@@ -181,7 +203,7 @@ impl RunConfig {
             ..AutoencoderConfig::default()
         };
         let bc_warm_start_epochs = match (method, env) {
-            (Method::Red, EnvId::HalfCheetah | EnvId::Ant | EnvId::Walker2d) => 100,
+            (Method::Red, EnvId::Hopper | EnvId::HalfCheetah | EnvId::Ant | EnvId::Walker2d) => 100,
             (Method::Ae, EnvId::HalfCheetah) => 20,
             (Method::Ae, EnvId::Ant) => 10,
             _ => 0,
@@ -210,6 +232,7 @@ impl RunConfig {
             } else {
                 RedRewardConfig::default().sigma1
             },
+            reward_clips_actions: false,
             gail: GailConfig::default(),
             gmmil: GmmilConfig::default(),
             bc: BcConfig::default(),
@@ -609,10 +632,14 @@ fn fresh_state(
     cfg: &RunConfig,
     demos: Option<&Demos>,
     obs_dim: usize,
-    act_dim: usize,
+    action_box: &BoxSpace,
 ) -> Result<RunState> {
+    let act_dim = action_box.dim();
     let seeder = Seeder::new(cfg.seed);
     let pairs = demos.map(|d| d.pairs());
+    let reward_pairs = demos
+        .map(|d| reward_pairs(cfg, d, action_box))
+        .transpose()?;
     let normalizer = match (&pairs, cfg.freeze_obs_norm_from_demo) {
         (Some((es, _)), true) => Some(ObsNormalizer::from_data(
             es.view(),
@@ -622,7 +649,7 @@ fn fresh_state(
         _ => None,
     };
     let mut trainer = TrpoTrainer::new(cfg.trpo.clone(), obs_dim, act_dim, normalizer, cfg.seed)?;
-    let reward = match &pairs {
+    let reward = match &reward_pairs {
         None if cfg.method.needs_demo() && cfg.method != Method::Bc => {
             return Err(Error::InvalidConfig {
                 field: "demo".into(),
@@ -669,6 +696,34 @@ fn fresh_state(
         mujoco_warnings: [0; MJ_N_WARNING],
         wall_s: 0.0,
     })
+}
+
+/// The expert pairs the imitation reward is fitted and checked on: the
+/// demonstrations' pairs, with the actions clipped into `action_box` when
+/// [`RunConfig::reward_clips_actions`] is set.
+fn reward_pairs(
+    cfg: &RunConfig,
+    demos: &Demos,
+    action_box: &BoxSpace,
+) -> Result<(Array2<f64>, Array2<f64>)> {
+    let (s, a) = demos.pairs();
+    if cfg.reward_clips_actions {
+        let a = action_box.clip_rows(a.view())?;
+        Ok((s, a))
+    } else {
+        Ok((s, a))
+    }
+}
+
+/// The task's action box (every MuJoCo task has one).
+fn action_box(env: &impl Env) -> Result<BoxSpace> {
+    match env.action_space() {
+        Space::Box(b) => Ok(b.clone()),
+        Space::Discrete(n) => Err(Error::InvalidConfig {
+            field: "env".into(),
+            reason: format!("needs a box action space, got {n} discrete actions"),
+        }),
+    }
 }
 
 fn check_batch_finite(batch: &red_rl::rollout::RolloutBatch, step: u64) -> Result<()> {
@@ -912,6 +967,7 @@ pub fn run_with(
     let session = Instant::now();
     let mut env = WatchedEnv::new(cfg.env).with_context(|| format!("cannot build {}", cfg.env))?;
     let (od, ad) = (env.observation_space().dim(), env.action_space().dim());
+    let act_box = action_box(&env)?;
     let demos = match &cfg.demo {
         Some(p) if cfg.method.needs_demo() => Some(load_demos(p, cfg.env)?),
         _ => None,
@@ -931,10 +987,10 @@ pub fn run_with(
     let mut state = match state {
         Some(s) => s,
         None => {
-            let s = fresh_state(&cfg, demos.as_ref(), od, ad)?;
+            let s = fresh_state(&cfg, demos.as_ref(), od, &act_box)?;
             rd.save_checkpoint(CHECKPOINT_KIND, &checkpoint_settings(&cfg), &s)?;
             if let (Some(ImitationReward::Support(r)), Some(d)) = (&s.reward, &demos) {
-                let (es, ea) = d.pairs();
+                let (es, ea) = reward_pairs(&cfg, d, &act_box)?;
                 let on = r.rewards(es.view(), ea.view())?;
                 let msg = format!(
                     "{} fitted on {} expert pairs: sigma1 {}, expert pairs' reward mean {:.3}, min {:.3}",
@@ -993,7 +1049,15 @@ pub fn run_with(
                 rd.file("checkpoint.json").display()
             )
         })?;
-        let reward = state.reward.as_mut().map(|r| r as &mut dyn RewardModel);
+        let mut clipped;
+        let reward = match state.reward.as_mut() {
+            Some(r) if cfg.reward_clips_actions => {
+                clipped = ClippedActions::new(r, &act_box);
+                Some(&mut clipped as &mut dyn RewardModel)
+            }
+            Some(r) => Some(r as &mut dyn RewardModel),
+            None => None,
+        };
         let m = state.trainer.update(&batch, reward).with_context(|| {
             format!(
                 "TRPO update at env step {step} (last good checkpoint kept: {})",
@@ -1087,7 +1151,7 @@ pub fn run_with(
     };
     let demo_mean_imitation_reward = match (&state.reward, &demos) {
         (Some(ImitationReward::Support(r)), Some(d)) => {
-            let (es, ea) = d.pairs();
+            let (es, ea) = reward_pairs(&cfg, d, &act_box)?;
             Some(r.rewards(es.view(), ea.view())?.mean().unwrap_or(f64::NAN))
         }
         _ => None,
@@ -1453,6 +1517,26 @@ mod tests {
     use super::*;
 
     #[test]
+    fn reward_pairs_clip_the_actions_only_when_asked() {
+        let mut d = Demos::new("Hopper-v5", 2, 2, None);
+        d.trajectories.push(red_core::Trajectory {
+            observations: vec![vec![5.0, -5.0], vec![0.0, 0.0]],
+            actions: vec![vec![2.5, -0.5], vec![-3.0, 1.0]],
+            rewards: None,
+            end: red_core::EpisodeEnd::Terminated,
+        });
+        let b = BoxSpace::uniform(2, -1.0, 1.0);
+        let mut cfg = RunConfig::for_task(EnvId::Hopper, Method::Red);
+        let (s, a) = reward_pairs(&cfg, &d, &b).unwrap();
+        assert_eq!(s, ndarray::array![[5.0, -5.0], [0.0, 0.0]]);
+        assert_eq!(a, ndarray::array![[2.5, -0.5], [-3.0, 1.0]]);
+        cfg.reward_clips_actions = true;
+        let (s2, a) = reward_pairs(&cfg, &d, &b).unwrap();
+        assert_eq!(s2, s);
+        assert_eq!(a, ndarray::array![[1.0, -0.5], [-1.0, 1.0]]);
+    }
+
+    #[test]
     fn flags_override_the_task_defaults_and_name_the_folder() {
         let out = PathBuf::from("runs");
         let flags = RunFlags {
@@ -1736,11 +1820,13 @@ mod tests {
             (w.bc_warm_start_epochs, w.trpo.policy.init_log_std),
             (100, -1.0)
         );
+        // Hopper since session 25 (issue 21): warm-started like Walker2d.
         let p = RunConfig::for_task(EnvId::Hopper, Method::Red);
         assert_eq!(
             (p.bc_warm_start_epochs, p.trpo.policy.init_log_std),
-            (0, 0.0)
+            (100, -1.0)
         );
+        assert!(!p.reward_clips_actions);
         let r = RunConfig::for_task(EnvId::Reacher, Method::Red);
         assert!(r.rnd.standardize && r.rnd.output == 20);
         assert_eq!(
