@@ -121,11 +121,18 @@ pub struct RunConfig {
     /// reward is fitted (and `sigma1` calibrated), and the policy's sampled
     /// actions before they are scored, as the environment executes them.
     /// Default: false (the reward sees the demonstrations' actions as
-    /// stored and the policy's unclipped draws). Measured reason (RED on
-    /// Hopper, 4 deterministic demos of a 3687 expert stored raw, 40.5% of
-    /// the action entries outside [-1, 1], 2M steps, seed 0, no warm
-    /// start): 1602.77 unclipped, 945.21 clipped; docs/results/mujoco.md,
-    /// "RED on demos with raw actions: diagnosis (session 25)".
+    /// stored and the policy's unclipped draws). Measured (RED on Hopper,
+    /// 4 deterministic demos of a 3682 expert stored raw, 40.5% of the
+    /// action entries outside [-1, 1], 2M steps): without a warm start
+    /// 1602.77 unclipped, 945.21 clipped (seed 0); with the warm start
+    /// (the Hopper default since session 25) 3586.55, 2579.05, 3124.60
+    /// unclipped and 3547.58, 3466.41, 3499.48 clipped (seeds 0-2); on
+    /// the same expert's clipped demos 3319.41 unclipped, 3219.63 clipped
+    /// (seed 1), on the project's demos 3355.82 and 3406.82 (seed 0):
+    /// promising, but measured on Hopper only and with few seeds, so not
+    /// yet every task's default; see
+    /// docs/results/mujoco.md, "RED on demos with raw actions: diagnosis
+    /// (session 25)".
     pub reward_clips_actions: bool,
     /// GAIL's discriminator (OpenAI baselines' settings).
     pub gail: GailConfig,
@@ -143,14 +150,16 @@ pub struct RunConfig {
     /// standardised input, seed 0): warm start 20 and log-std 0: 625; 100
     /// and 0: 1365; 20 and -1: 1472; 100 and -1: 1631. Walker2d at 5M: no
     /// warm start 3881 (76.8% of the expert), warm start 5099 (100.9%).
-    /// Hopper (issue 21, 2M steps, seed 0; 4 deterministic demos of a
-    /// second expert, 3682 per episode): without a warm start the policy's
-    /// std collapsed within 150k steps onto a hop that falls after ~100
-    /// steps (imitation reward 0.72 per step) and the run ended at 532.92
-    /// with the demo actions clipped, 1602.77 stored raw; with the warm
-    /// start 3603.68 and 3586.55 (BC alone 2146.55 and 2415.84). See
-    /// docs/results/mujoco.md, "RED on demos with raw actions: diagnosis
-    /// (session 25)".
+    /// Hopper (issue 21, 2M steps; 4 deterministic demos of a second
+    /// expert, 3682 per episode): without a warm start the policy's std
+    /// shrinks within 150k steps onto a hop that falls after ~100 steps
+    /// (imitation reward ~0.7 per step) and the run leaves it late or not
+    /// at all: seeds 0-2 ended at 532.92, 2860.39, 1514.29 with the demo
+    /// actions clipped and 1602.77, 2077.62, 3059.81 stored raw; with the
+    /// warm start 3603.68, 3319.41, 3170.38 and 3586.55, 2579.05, 3124.60
+    /// (BC alone, seed 0: 2146.55 and 2415.84); the project's own demos
+    /// 3202.38 without, 3355.82 with (seed 0). See docs/results/mujoco.md,
+    /// "RED on demos with raw actions: diagnosis (session 25)".
     pub bc_warm_start_epochs: usize,
     /// Epochs of the `bc` method. Default 100 (our choice: the release does
     /// not report BC alone on MuJoCo; 100 epochs over 4000 pairs is about
