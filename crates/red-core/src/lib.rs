@@ -67,7 +67,7 @@ pub use demo::{DemoSource, Demos, EpisodeEnd, Trajectory};
 pub use env::{Env, Info, Step, TRUE_REWARD};
 pub use episode::{EpisodeRun, record_episode, run_episode, true_reward};
 pub use error::{Error, Result};
-pub use reward::{DifferentiableReward, RewardModel};
+pub use reward::{ClippedActions, DifferentiableReward, RewardModel};
 pub use seeding::{Seeder, Stream};
 pub use space::{BoxSpace, Space};
 pub use wrappers::{RewardWrapper, TimeLimit};

@@ -2,7 +2,7 @@
 
 use ndarray::{Array1, Array2, ArrayView2};
 
-use crate::Result;
+use crate::{BoxSpace, Result};
 
 /// A reward over state-action pairs, used in place of the environment's own.
 ///
@@ -36,6 +36,52 @@ pub trait RewardModel {
     /// Whether [`RewardModel::update`] changes the model.
     fn is_adaptive(&self) -> bool {
         false
+    }
+}
+
+/// A reward model that sees actions clipped into a box: `rewards(s, a)` and
+/// `update(s, a)` are the inner model's on `(s, clip(a))`. For a learner
+/// whose environment clips its sampled actions, this scores what the
+/// environment executes rather than the raw draw.
+pub struct ClippedActions<M> {
+    inner: M,
+    bounds: BoxSpace,
+}
+
+impl<M: RewardModel> ClippedActions<M> {
+    /// `inner` seen through the clip into `bounds`.
+    pub fn new(inner: M, bounds: BoxSpace) -> Self {
+        Self { inner, bounds }
+    }
+
+    /// The inner model.
+    pub fn inner(&self) -> &M {
+        &self.inner
+    }
+
+    /// The inner model, unwrapped.
+    pub fn into_inner(self) -> M {
+        self.inner
+    }
+}
+
+impl<M: RewardModel> RewardModel for ClippedActions<M> {
+    fn rewards(
+        &self,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+    ) -> Result<Array1<f64>> {
+        let a = self.bounds.clip_rows(actions)?;
+        self.inner.rewards(states, a.view())
+    }
+
+    fn update(&mut self, states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Result<()> {
+        let a = self.bounds.clip_rows(actions)?;
+        self.inner.update(states, a.view())
+    }
+
+    fn is_adaptive(&self) -> bool {
+        self.inner.is_adaptive()
     }
 }
 

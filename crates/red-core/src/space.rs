@@ -51,6 +51,28 @@ impl BoxSpace {
     pub fn dim(&self) -> usize {
         self.low.len()
     }
+
+    /// The rows of `x`, `(n, dim)`, each entry clipped into its bounds (what
+    /// an environment that clips executes); `(n, dim)` out.
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] if `x` does not have `dim` columns.
+    pub fn clip_rows(&self, x: ndarray::ArrayView2<'_, f64>) -> Result<ndarray::Array2<f64>> {
+        if x.ncols() != self.dim() {
+            return Err(Error::ShapeMismatch {
+                what: "rows to clip into the box".into(),
+                expected: format!("{} columns", self.dim()),
+                got: format!("{} columns", x.ncols()),
+            });
+        }
+        let mut y = x.to_owned();
+        for mut row in y.rows_mut() {
+            for ((v, l), h) in row.iter_mut().zip(&self.low).zip(&self.high) {
+                *v = v.max(*l).min(*h);
+            }
+        }
+        Ok(y)
+    }
 }
 
 /// The space of an observation or an action.

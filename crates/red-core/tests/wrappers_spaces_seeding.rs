@@ -4,8 +4,8 @@ use ndarray::{Array1, ArrayView2};
 use rand::{Rng, RngExt};
 use red_core::seeding::{Seeder, Stream};
 use red_core::{
-    BoxSpace, Env, Error, Info, Result, RewardModel, RewardWrapper, Space, Step, TRUE_REWARD,
-    TimeLimit, check_env,
+    BoxSpace, ClippedActions, Env, Error, Info, Result, RewardModel, RewardWrapper, Space, Step,
+    TRUE_REWARD, TimeLimit, check_env,
 };
 
 /// Counts up by the action; terminates when the count reaches `end`; its
@@ -269,4 +269,53 @@ fn different_streams_and_seeds_differ() {
     let mut env = seeder.rng(Stream::Env);
     let _: f64 = env.random();
     assert_eq!(first(3, Stream::Init), first(3, Stream::Init));
+}
+
+#[test]
+fn box_space_clips_rows_into_its_bounds() {
+    let b = BoxSpace::new(vec![-1.0, 0.0], vec![1.0, 2.0]).unwrap();
+    let x = ndarray::array![[-3.0, 1.0], [0.5, 2.5], [1.0, -0.1]];
+    let y = b.clip_rows(x.view()).unwrap();
+    assert_eq!(y, ndarray::array![[-1.0, 1.0], [0.5, 2.0], [1.0, 0.0]]);
+    let wrong = ndarray::Array2::<f64>::zeros((2, 3));
+    assert!(matches!(
+        b.clip_rows(wrong.view()),
+        Err(Error::ShapeMismatch { .. })
+    ));
+}
+
+/// Reward `-sum(a^2)`; records the actions of the last update.
+struct Quadratic {
+    seen: Vec<f64>,
+}
+
+impl RewardModel for Quadratic {
+    fn rewards(&self, _s: ArrayView2<'_, f64>, a: ArrayView2<'_, f64>) -> Result<Array1<f64>> {
+        Ok(a.rows().into_iter().map(|r| -r.dot(&r)).collect())
+    }
+    fn update(&mut self, _s: ArrayView2<'_, f64>, a: ArrayView2<'_, f64>) -> Result<()> {
+        self.seen = a.iter().copied().collect();
+        Ok(())
+    }
+    fn is_adaptive(&self) -> bool {
+        true
+    }
+}
+
+#[test]
+fn clipped_actions_scores_and_updates_with_the_executed_actions() {
+    let b = BoxSpace::uniform(2, -1.0, 1.0);
+    let s = ndarray::Array2::<f64>::zeros((2, 1));
+    let a = ndarray::array![[3.0, -0.5], [-2.0, 0.0]];
+    let inner = Quadratic { seen: vec![] };
+    let raw = inner.rewards(s.view(), a.view()).unwrap();
+    assert_eq!(raw.to_vec(), vec![-9.25, -4.0]);
+    let mut m = ClippedActions::new(inner, b);
+    assert!(m.is_adaptive());
+    assert_eq!(
+        m.rewards(s.view(), a.view()).unwrap().to_vec(),
+        vec![-1.25, -1.0]
+    );
+    m.update(s.view(), a.view()).unwrap();
+    assert_eq!(m.into_inner().seen, vec![1.0, -0.5, -1.0, 0.0]);
 }

@@ -25,10 +25,13 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+use ndarray::Array2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use red_core::checkpoint::{load_checkpoint_for, write_atomic};
-use red_core::{Demos, Env, RewardModel, Seeder, Space, Stream, record_episode};
+use red_core::{
+    BoxSpace, ClippedActions, Demos, Env, RewardModel, Seeder, Space, Stream, record_episode,
+};
 use red_mujoco::watched::MJ_N_WARNING;
 use red_mujoco::{EnvId, MujocoEnv, WatchedEnv, describe_warnings};
 use red_rl::bc::{BcConfig, behavior_clone};
@@ -68,7 +71,7 @@ pub struct RunConfig {
     pub demo: Option<PathBuf>,
     /// TRPO's settings. Default: the release's (gamma 0.99 for Reacher),
     /// except that a `red` run with a BC warm start starts its policy's
-    /// log-std at -1 (sigma ~0.37) on HalfCheetah and Walker2d and at -2
+    /// log-std at -1 (sigma ~0.37) on Hopper, HalfCheetah and Walker2d and at -2
     /// (sigma ~0.14) on Ant, instead of 0. Measured reason: with a wide
     /// Gaussian the sampled actions of the warm-started policy are mostly
     /// noise and TRPO drifts away from the cloned gait before it has seen
@@ -114,6 +117,24 @@ pub struct RunConfig {
     /// slowed after 2.3M and ended at 859.98); seed 0 ended at 3668.34.
     /// With reward 0.5: seed 0 3755.45, seed 1 3890.00 (expert 3630.28).
     pub sigma1: Sigma1,
+    /// Whether the imitation reward sees actions clipped to the task's
+    /// action space: the demonstrations' actions are clipped before the
+    /// reward is fitted (and `sigma1` calibrated), and the policy's sampled
+    /// actions before they are scored, as the environment executes them.
+    /// Default: false (the reward sees the demonstrations' actions as
+    /// stored and the policy's unclipped draws). Measured (RED on Hopper,
+    /// 4 deterministic demos of a 3682 expert stored raw, 40.5% of the
+    /// action entries outside [-1, 1], 2M steps): without a warm start
+    /// 1602.77 unclipped, 945.21 clipped (seed 0); with the warm start
+    /// (the Hopper default since session 25) 3586.55, 2579.05, 3124.60
+    /// unclipped and 3547.58, 3466.41, 3499.48 clipped (seeds 0-2); on
+    /// the same expert's clipped demos 3319.41 unclipped, 3219.63 clipped
+    /// (seed 1), on the project's demos 3355.82 and 3406.82 (seed 0):
+    /// promising, but measured on Hopper only and with few seeds, so not
+    /// yet every task's default; see
+    /// docs/results/mujoco.md, "RED on demos with raw actions: diagnosis
+    /// (session 25)".
+    pub reward_clips_actions: bool,
     /// GAIL's discriminator (OpenAI baselines' settings).
     pub gail: GailConfig,
     /// GMMIL's kernels (the release's median rule).
@@ -123,13 +144,23 @@ pub struct RunConfig {
     pub bc: BcConfig,
     /// Epochs of the behaviour-cloning warm start before TRPO; 0 for none.
     /// Default: 100 for `red` on HalfCheetah, Ant (the paper warm-starts
-    /// these two) and Walker2d (our addition), as the `bc` method: cloning
+    /// these two), Walker2d and Hopper (our additions), as the `bc` method: cloning
     /// until its loss flattens; as the release, 20 and 10 on HalfCheetah and
     /// Ant for `ae`; none elsewhere (the paper: GAIL and GMMIL start from a
     /// random policy). Measured on HalfCheetah at 1M steps (RED, width 128,
     /// standardised input, seed 0): warm start 20 and log-std 0: 625; 100
     /// and 0: 1365; 20 and -1: 1472; 100 and -1: 1631. Walker2d at 5M: no
     /// warm start 3881 (76.8% of the expert), warm start 5099 (100.9%).
+    /// Hopper (issue 21, 2M steps; 4 deterministic demos of a second
+    /// expert, 3682 per episode): without a warm start the policy's std
+    /// shrinks within 150k steps onto a hop that falls after ~100 steps
+    /// (imitation reward ~0.7 per step) and the run leaves it late or not
+    /// at all: seeds 0-2 ended at 532.92, 2860.39, 1514.29 with the demo
+    /// actions clipped and 1602.77, 2077.62, 3059.81 stored raw; with the
+    /// warm start 3603.68, 3319.41, 3170.38 and 3586.55, 2579.05, 3124.60
+    /// (BC alone, seed 0: 2146.55 and 2415.84); the project's own demos
+    /// 3202.38 without, 3355.82 with (seed 0). See docs/results/mujoco.md,
+    /// "RED on demos with raw actions: diagnosis (session 25)".
     pub bc_warm_start_epochs: usize,
     /// Epochs of the `bc` method. Default 100 (our choice: the release does
     /// not report BC alone on MuJoCo; 100 epochs over 4000 pairs is about
@@ -182,7 +213,7 @@ impl RunConfig {
             ..AutoencoderConfig::default()
         };
         let bc_warm_start_epochs = match (method, env) {
-            (Method::Red, EnvId::HalfCheetah | EnvId::Ant | EnvId::Walker2d) => 100,
+            (Method::Red, EnvId::Hopper | EnvId::HalfCheetah | EnvId::Ant | EnvId::Walker2d) => 100,
             (Method::Ae, EnvId::HalfCheetah) => 20,
             (Method::Ae, EnvId::Ant) => 10,
             _ => 0,
@@ -211,6 +242,7 @@ impl RunConfig {
             } else {
                 RedRewardConfig::default().sigma1
             },
+            reward_clips_actions: false,
             gail: GailConfig::default(),
             gmmil: GmmilConfig::default(),
             bc: BcConfig::default(),
@@ -347,7 +379,7 @@ struct RunState {
 #[derive(Serialize)]
 struct RunStateRef<'a> {
     trainer: &'a TrpoTrainer,
-    reward: &'a Option<ImitationReward>,
+    reward: Option<&'a ImitationReward>,
     recent: &'a VecDeque<f64>,
     best: &'a Option<BestRecord>,
     mujoco_warnings: &'a [u64; MJ_N_WARNING],
@@ -596,10 +628,14 @@ fn fresh_state(
     cfg: &RunConfig,
     demos: Option<&Demos>,
     obs_dim: usize,
-    act_dim: usize,
+    action_box: &BoxSpace,
 ) -> Result<RunState> {
+    let act_dim = action_box.dim();
     let seeder = Seeder::new(cfg.seed);
     let pairs = demos.map(|d| d.pairs());
+    let reward_pairs = demos
+        .map(|d| reward_pairs(cfg, d, action_box))
+        .transpose()?;
     let normalizer = match (&pairs, cfg.freeze_obs_norm_from_demo) {
         (Some((es, _)), true) => Some(ObsNormalizer::from_data(
             es.view(),
@@ -609,7 +645,7 @@ fn fresh_state(
         _ => None,
     };
     let mut trainer = TrpoTrainer::new(cfg.trpo.clone(), obs_dim, act_dim, normalizer, cfg.seed)?;
-    let reward = match &pairs {
+    let reward = match &reward_pairs {
         None if cfg.method.needs_demo() && cfg.method != Method::Bc => {
             return Err(Error::InvalidConfig {
                 field: "demo".into(),
@@ -658,6 +694,34 @@ fn fresh_state(
     })
 }
 
+/// The expert pairs the imitation reward is fitted and checked on: the
+/// demonstrations' pairs, with the actions clipped into `action_box` when
+/// [`RunConfig::reward_clips_actions`] is set.
+fn reward_pairs(
+    cfg: &RunConfig,
+    demos: &Demos,
+    action_box: &BoxSpace,
+) -> Result<(Array2<f64>, Array2<f64>)> {
+    let (s, a) = demos.pairs();
+    if cfg.reward_clips_actions {
+        let a = action_box.clip_rows(a.view())?;
+        Ok((s, a))
+    } else {
+        Ok((s, a))
+    }
+}
+
+/// The task's action box (every MuJoCo task has one).
+fn action_box(env: &impl Env) -> Result<BoxSpace> {
+    match env.action_space() {
+        Space::Box(b) => Ok(b.clone()),
+        Space::Discrete(n) => Err(Error::InvalidConfig {
+            field: "env".into(),
+            reason: format!("needs a box action space, got {n} discrete actions"),
+        }),
+    }
+}
+
 /// The run's side of TRPO's training loop ([`TrpoTrainer::train_with`]):
 /// the stop flag, a row of `metrics.csv` per iteration, the best window,
 /// MuJoCo's warnings and the checkpoints, which hold the trainer with
@@ -673,7 +737,7 @@ struct RunHooks<'a> {
     /// `metrics.csv`, rewritten whole (atomically) after every iteration,
     /// never appended to: a failed write leaves the previous file intact.
     metrics: String,
-    reward: Option<ImitationReward>,
+    reward: Option<RunReward>,
     recent: VecDeque<f64>,
     best: Option<BestRecord>,
     mujoco_warnings: [u64; MJ_N_WARNING],
@@ -684,7 +748,7 @@ impl RunHooks<'_> {
         self.rd.write("metrics.csv", self.metrics.as_bytes())?;
         let state = RunStateRef {
             trainer,
-            reward: &self.reward,
+            reward: self.reward.as_ref().map(RunReward::model),
             recent: &self.recent,
             best: &self.best,
             mujoco_warnings: &self.mujoco_warnings,
@@ -692,6 +756,30 @@ impl RunHooks<'_> {
         };
         let settings = checkpoint_settings(self.cfg);
         self.rd.save_checkpoint(CHECKPOINT_KIND, &settings, &state)
+    }
+}
+
+/// The imitation reward as TRPO scores its batches: as fitted, or with
+/// [`RunConfig::reward_clips_actions`] seeing the actions clipped into the
+/// task's box ([`ClippedActions`]), as for the fit.
+enum RunReward {
+    AsFitted(ImitationReward),
+    Clipped(ClippedActions<ImitationReward>),
+}
+
+impl RunReward {
+    fn model(&self) -> &ImitationReward {
+        match self {
+            Self::AsFitted(m) => m,
+            Self::Clipped(c) => c.inner(),
+        }
+    }
+
+    fn as_dyn(&mut self) -> &mut dyn RewardModel {
+        match self {
+            Self::AsFitted(m) => m,
+            Self::Clipped(c) => c,
+        }
     }
 }
 
@@ -714,7 +802,7 @@ impl TrpoHooks<WatchedEnv> for RunHooks<'_> {
     }
 
     fn reward(&mut self) -> Option<&mut dyn RewardModel> {
-        self.reward.as_mut().map(|r| r as &mut dyn RewardModel)
+        self.reward.as_mut().map(RunReward::as_dyn)
     }
 
     fn after_iteration(
@@ -994,6 +1082,7 @@ pub fn run_with(
     let session = Instant::now();
     let mut env = WatchedEnv::new(cfg.env).with_context(|| format!("cannot build {}", cfg.env))?;
     let (od, ad) = (env.observation_space().dim(), env.action_space().dim());
+    let act_box = action_box(&env)?;
     let demos = match &cfg.demo {
         Some(p) if cfg.method.needs_demo() => Some(load_demos(p, cfg.env)?),
         _ => None,
@@ -1013,10 +1102,10 @@ pub fn run_with(
     let state = match state {
         Some(s) => s,
         None => {
-            let s = fresh_state(&cfg, demos.as_ref(), od, ad)?;
+            let s = fresh_state(&cfg, demos.as_ref(), od, &act_box)?;
             rd.save_checkpoint(CHECKPOINT_KIND, &checkpoint_settings(&cfg), &s)?;
             if let (Some(ImitationReward::Support(r)), Some(d)) = (&s.reward, &demos) {
-                let (es, ea) = d.pairs();
+                let (es, ea) = reward_pairs(&cfg, d, &act_box)?;
                 let on = r.rewards(es.view(), ea.view())?;
                 let msg = format!(
                     "{} fitted on {} expert pairs: sigma1 {}, expert pairs' reward mean {:.3}, min {:.3}",
@@ -1052,7 +1141,10 @@ pub fn run_with(
         session,
         wall_before,
         metrics: truncate_metrics(&rd.file("metrics.csv"), trainer.iteration())?,
-        reward,
+        reward: reward.map(|m| match cfg.reward_clips_actions {
+            true => RunReward::Clipped(ClippedActions::new(m, act_box.clone())),
+            false => RunReward::AsFitted(m),
+        }),
         recent,
         best,
         mujoco_warnings,
@@ -1077,6 +1169,10 @@ pub fn run_with(
         mujoco_warnings,
         ..
     } = hooks;
+    let reward = reward.map(|r| match r {
+        RunReward::AsFitted(m) => m,
+        RunReward::Clipped(c) => c.into_inner(),
+    });
 
     // Final policy and evaluations.
     let policy = trainer.policy().clone();
@@ -1116,7 +1212,7 @@ pub fn run_with(
     };
     let demo_mean_imitation_reward = match (&reward, &demos) {
         (Some(ImitationReward::Support(r)), Some(d)) => {
-            let (es, ea) = d.pairs();
+            let (es, ea) = reward_pairs(&cfg, d, &act_box)?;
             Some(r.rewards(es.view(), ea.view())?.mean().unwrap_or(f64::NAN))
         }
         _ => None,
@@ -1482,6 +1578,26 @@ mod tests {
     use super::*;
 
     #[test]
+    fn reward_pairs_clip_the_actions_only_when_asked() {
+        let mut d = Demos::new("Hopper-v5", 2, 2, None);
+        d.trajectories.push(red_core::Trajectory {
+            observations: vec![vec![5.0, -5.0], vec![0.0, 0.0]],
+            actions: vec![vec![2.5, -0.5], vec![-3.0, 1.0]],
+            rewards: None,
+            end: red_core::EpisodeEnd::Terminated,
+        });
+        let b = BoxSpace::uniform(2, -1.0, 1.0);
+        let mut cfg = RunConfig::for_task(EnvId::Hopper, Method::Red);
+        let (s, a) = reward_pairs(&cfg, &d, &b).unwrap();
+        assert_eq!(s, ndarray::array![[5.0, -5.0], [0.0, 0.0]]);
+        assert_eq!(a, ndarray::array![[2.5, -0.5], [-3.0, 1.0]]);
+        cfg.reward_clips_actions = true;
+        let (s2, a) = reward_pairs(&cfg, &d, &b).unwrap();
+        assert_eq!(s2, s);
+        assert_eq!(a, ndarray::array![[1.0, -0.5], [-1.0, 1.0]]);
+    }
+
+    #[test]
     fn flags_override_the_task_defaults_and_name_the_folder() {
         let out = PathBuf::from("runs");
         let flags = RunFlags {
@@ -1749,11 +1865,13 @@ mod tests {
             (w.bc_warm_start_epochs, w.trpo.policy.init_log_std),
             (100, -1.0)
         );
+        // Hopper since session 25 (issue 21): warm-started like Walker2d.
         let p = RunConfig::for_task(EnvId::Hopper, Method::Red);
         assert_eq!(
             (p.bc_warm_start_epochs, p.trpo.policy.init_log_std),
-            (0, 0.0)
+            (100, -1.0)
         );
+        assert!(!p.reward_clips_actions);
         let r = RunConfig::for_task(EnvId::Reacher, Method::Red);
         assert!(r.rnd.standardize && r.rnd.output == 20);
         assert_eq!(
