@@ -13,10 +13,9 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use red_core::{Env, RewardModel, Seeder, Space, Stream};
-use red_experiments::imitation::{Method, RewardSettings, fit_reward};
+use red_experiments::imitation::{Method, fit_reward};
 use red_experiments::mujoco::run::{RunConfig, load_demos};
 use red_mujoco::EnvId;
-use red_support::ExpertScores;
 
 type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
 
@@ -87,14 +86,7 @@ fn probe(file: &str, seed: u64) -> AnyResult<()> {
     println!("per-dimension action std: {stds:.3?}; max |a|: {maxabs:.2?}");
 
     let cfg = RunConfig::for_task(env_id, Method::Red);
-    let settings = RewardSettings {
-        rnd: &cfg.rnd,
-        autoencoder: &cfg.autoencoder,
-        sigma1: cfg.sigma1,
-        scores: ExpertScores::InSample,
-        gail: &cfg.gail,
-        gmmil: &cfg.gmmil,
-    };
+    let settings = cfg.reward_settings();
     let seeder = Seeder::new(seed);
     let mut rng = seeder.rng(Stream::Estimator);
     let t = std::time::Instant::now();

@@ -330,6 +330,19 @@ impl RunConfig {
         Ok(())
     }
 
+    /// The settings a run fits its imitation reward with
+    /// ([`crate::imitation::fit_reward`]; `σ1` from in-sample expert scores).
+    pub fn reward_settings(&self) -> RewardSettings<'_> {
+        RewardSettings {
+            rnd: &self.rnd,
+            autoencoder: &self.autoencoder,
+            sigma1: self.sigma1,
+            scores: ExpertScores::InSample,
+            gail: &self.gail,
+            gmmil: &self.gmmil,
+        }
+    }
+
     /// These settings overwritten by the fields of the JSON object `json`
     /// (a `config.json` or part of one, read from `source`; nested objects
     /// are merged field by field, so missing fields keep their values;
@@ -654,14 +667,7 @@ fn fresh_state(
         }
         None => None,
         Some((es, ea)) => {
-            let settings = RewardSettings {
-                rnd: &cfg.rnd,
-                autoencoder: &cfg.autoencoder,
-                sigma1: cfg.sigma1,
-                scores: ExpertScores::InSample,
-                gail: &cfg.gail,
-                gmmil: &cfg.gmmil,
-            };
+            let settings = cfg.reward_settings();
             let mut rng = seeder.rng(Stream::Estimator);
             let gail_seed = seeder.derive(Stream::Estimator);
             fit_reward(
