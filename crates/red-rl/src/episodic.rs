@@ -23,8 +23,38 @@ use std::ops::ControlFlow;
 use rand::Rng;
 use red_core::{Env, Space};
 
-use crate::svg::{DifferentiableReward, EpisodeOutcome, EpisodeReport};
+use ndarray::Array2;
+use red_core::{DifferentiableReward, Info};
+
 use crate::{Error, Result};
+
+/// An episode finished during [`EpisodicLearner::train`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeReport {
+    /// Environment steps so far.
+    pub env_steps: u64,
+    /// Sum of the environment's (true) rewards.
+    pub true_return: f64,
+    /// Sum of the imitation rewards stored, terminal adjustment included.
+    pub imitation_return: f64,
+    /// Steps in the episode.
+    pub length: usize,
+    /// The last step's info.
+    pub info: Info,
+}
+
+/// One episode of [`EpisodicLearner::run_episode`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeOutcome {
+    /// Returns, length and the last step's info.
+    pub report: EpisodeReport,
+    /// False when the step budget cut the episode short.
+    pub finished: bool,
+    /// The states visited, `(length, obs_dim)`.
+    pub states: Array2<f64>,
+    /// The actions taken, `(length, act_dim)`.
+    pub actions: Array2<f64>,
+}
 
 /// What [`EpisodicLearner::train_with`] calls around its episodes. The
 /// hooks hold what a caller keeps beside the learner (the reward, records,

@@ -36,9 +36,10 @@ use red_nets::{
 };
 
 use crate::episodic::EpisodicLearner;
+use crate::episodic::{EpisodeOutcome, EpisodeReport};
 use crate::policy::{GaussianBatch, GaussianPolicy, PolicyWorkspace};
 use crate::replay::{Batch, ReplayBuffer};
-use crate::svg::{DifferentiableReward, EpisodeOutcome, EpisodeReport};
+use crate::svg::DifferentiableReward;
 use crate::{Error, Result};
 
 /// `0.5 * ln(2 pi)`.

@@ -39,6 +39,7 @@ use red_nets::{
 };
 
 use crate::episodic::EpisodicLearner;
+pub use crate::episodic::{EpisodeOutcome, EpisodeReport};
 use crate::policy::{GaussianPolicy, PolicyWorkspace};
 use crate::replay::{Batch, ReplayBuffer};
 use crate::{Error, Result};
@@ -255,21 +256,6 @@ pub struct UpdateStats {
     pub value_loss: f64,
     /// Policy objective (mean weighted one-step value), when updated.
     pub policy_objective: Option<f64>,
-}
-
-/// An episode finished during [`EpisodicLearner::train`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct EpisodeReport {
-    /// Environment steps so far.
-    pub env_steps: u64,
-    /// Sum of the environment's (true) rewards.
-    pub true_return: f64,
-    /// Sum of the imitation rewards stored, terminal adjustment included.
-    pub imitation_return: f64,
-    /// Steps in the episode.
-    pub length: usize,
-    /// The last step's info.
-    pub info: Info,
 }
 
 /// An SVG(1)-ER learner; see the module documentation. It serialises
@@ -768,19 +754,6 @@ impl Svg1 {
         let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
         crate::episodic::check_spaces("SVG", env, o, a)
     }
-}
-
-/// One episode of [`EpisodicLearner::run_episode`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct EpisodeOutcome {
-    /// Returns, length and the last step's info.
-    pub report: EpisodeReport,
-    /// False when the step budget cut the episode short.
-    pub finished: bool,
-    /// The states visited, `(length, obs_dim)`.
-    pub states: Array2<f64>,
-    /// The actions taken, `(length, act_dim)`.
-    pub actions: Array2<f64>,
 }
 
 impl EpisodicLearner for Svg1 {
