@@ -23,7 +23,7 @@ use std::ops::ControlFlow;
 use rand::Rng;
 use red_core::{Env, Space};
 
-use ndarray::Array2;
+use ndarray::{Array2, ArrayView2};
 use red_core::{DifferentiableReward, Info};
 
 use crate::{Error, Result};
@@ -54,6 +54,113 @@ pub struct EpisodeOutcome {
     pub states: Array2<f64>,
     /// The actions taken, `(length, act_dim)`.
     pub actions: Array2<f64>,
+}
+
+/// What one episode of a learner gathers as it goes (its pairs, both
+/// returns, how it ended), for [`EpisodicLearner::run_episode`].
+pub(crate) struct EpisodeLog {
+    obs_dim: usize,
+    act_dim: usize,
+    states: Vec<f64>,
+    actions: Vec<f64>,
+    true_return: f64,
+    imitation_return: f64,
+    length: usize,
+    finished: bool,
+    info: Info,
+}
+
+impl EpisodeLog {
+    pub(crate) fn new(obs_dim: usize, act_dim: usize) -> Self {
+        Self {
+            obs_dim,
+            act_dim,
+            states: Vec::new(),
+            actions: Vec::new(),
+            true_return: 0.0,
+            imitation_return: 0.0,
+            length: 0,
+            finished: false,
+            info: Info::new(),
+        }
+    }
+
+    /// Steps taken so far.
+    pub(crate) fn length(&self) -> usize {
+        self.length
+    }
+
+    /// `reward`'s value of the pair `(obs, a)`; [`Error::NonFinite`] at
+    /// environment step `env_step` when it is not finite.
+    pub(crate) fn reward_of(
+        reward: &dyn DifferentiableReward,
+        obs: &[f64],
+        a: &[f64],
+        env_step: u64,
+    ) -> Result<f64> {
+        let ov = ArrayView2::from_shape((1, obs.len()), obs).map_err(one_row)?;
+        let av = ArrayView2::from_shape((1, a.len()), a).map_err(one_row)?;
+        let r = reward.reward_and_grad(ov, av)?.0[0];
+        if r.is_finite() {
+            Ok(r)
+        } else {
+            Err(Error::NonFinite {
+                what: "imitation reward".into(),
+                step: env_step,
+            })
+        }
+    }
+
+    /// Records one step: the pair, the environment's reward and the
+    /// imitation reward stored.
+    pub(crate) fn record(&mut self, obs: &[f64], a: &[f64], true_reward: f64, imitation: f64) {
+        self.states.extend_from_slice(obs);
+        self.actions.extend_from_slice(a);
+        self.true_return += true_reward;
+        self.imitation_return += imitation;
+        self.length += 1;
+    }
+
+    /// The episode ended (terminated or truncated) with `info`; the terminal
+    /// adjustment `adjustment` was added to the last stored reward.
+    pub(crate) fn end(&mut self, adjustment: f64, info: Info) {
+        self.imitation_return += adjustment;
+        self.finished = true;
+        self.info = info;
+    }
+
+    /// The outcome, at the learner's step count `env_steps`.
+    pub(crate) fn into_outcome(self, env_steps: u64) -> Result<EpisodeOutcome> {
+        let len = self.length;
+        let shape = |w: usize, v: Vec<f64>| {
+            Array2::from_shape_vec((len, w), v).map_err(|e| Error::ShapeMismatch {
+                what: "episode pairs".into(),
+                expected: format!("{len} rows of {w}"),
+                got: e.to_string(),
+            })
+        };
+        Ok(EpisodeOutcome {
+            report: EpisodeReport {
+                env_steps,
+                true_return: self.true_return,
+                imitation_return: self.imitation_return,
+                length: len,
+                info: self.info,
+            },
+            finished: self.finished,
+            states: shape(self.obs_dim, self.states)?,
+            actions: shape(self.act_dim, self.actions)?,
+        })
+    }
+}
+
+/// A slice seen as one row.
+pub(crate) fn one_row(e: ndarray::ShapeError) -> Error {
+    Error::ShapeMismatch {
+        what: "one-row view".into(),
+        expected: "a row".into(),
+        got: e.to_string(),
+    }
 }
 
 /// What [`EpisodicLearner::train_with`] calls around its episodes. The

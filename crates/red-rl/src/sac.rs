@@ -30,13 +30,12 @@ use rand::{Rng, RngExt};
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
-use red_core::{Env, Info};
+use red_core::Env;
 use red_nets::{
     Activation, Adam, AdamConfig, Init, Mlp, MlpConfig, Optimizer, Tape, clip_grad_norm, mse_loss,
 };
 
-use crate::episodic::EpisodicLearner;
-use crate::episodic::{EpisodeOutcome, EpisodeReport};
+use crate::episodic::{EpisodeLog, EpisodeOutcome, EpisodicLearner};
 use crate::policy::{GaussianBatch, GaussianPolicy, PolicyWorkspace};
 use crate::replay::{Batch, ReplayBuffer};
 use crate::svg::DifferentiableReward;
@@ -660,35 +659,18 @@ impl EpisodicLearner for Sac {
         let seed = reset_seed.unwrap_or_else(|| rng.random());
         let (mut obs, _) = env.reset(Some(seed))?;
         self.check_observation(&obs)?;
-        let (o, ad) = (self.policy.obs_dim(), self.policy.act_dim());
-        let (mut states, mut actions) = (Vec::new(), Vec::new());
-        let (mut true_ret, mut im_ret, mut len) = (0.0, 0.0, 0usize);
-        let mut finished = false;
-        let mut info = Info::new();
+        let mut log = EpisodeLog::new(self.policy.obs_dim(), self.policy.act_dim());
         let mut ws = PolicyWorkspace::default();
-        let mut a = vec![0.0; ad];
-        while (len as u64) < max_steps {
+        let mut a = vec![0.0; self.policy.act_dim()];
+        while (log.length() as u64) < max_steps {
             self.policy
                 .act_into(&obs, Some(&mut *rng), &mut ws, &mut a)?;
             let step = env.step(&a)?;
             self.check_observation(&step.observation)?;
-            let ov = ArrayView2::from_shape((1, o), &obs).map_err(shape_err)?;
-            let av = ArrayView2::from_shape((1, ad), &a).map_err(shape_err)?;
-            let (r, _) = reward.reward_and_grad(ov, av)?;
-            let r = r[0];
-            if !r.is_finite() {
-                return Err(Error::NonFinite {
-                    what: "imitation reward".into(),
-                    step: self.env_steps,
-                });
-            }
+            let r = EpisodeLog::reward_of(reward, &obs, &a, self.env_steps)?;
             self.push(&obs, &a, r, &step.observation, step.terminated)?;
-            states.extend_from_slice(&obs);
-            actions.extend_from_slice(&a);
+            log.record(&obs, &a, step.reward, r);
             self.env_steps += 1;
-            true_ret += step.reward;
-            im_ret += r;
-            len += 1;
             if self.env_steps > self.config.learning_starts {
                 for _ in 0..self.config.updates_per_step {
                     self.update(reward, rng)?;
@@ -697,40 +679,12 @@ impl EpisodicLearner for Sac {
             if step.terminated || step.truncated {
                 let adj = terminal(r);
                 self.adjust_last_reward(adj);
-                im_ret += adj;
-                finished = true;
-                info = step.info;
+                log.end(adj, step.info);
                 break;
             }
             obs = step.observation;
         }
-        let shape = |w: usize, v: Vec<f64>| {
-            Array2::from_shape_vec((len, w), v).map_err(|e| Error::ShapeMismatch {
-                what: "episode pairs".into(),
-                expected: format!("{len} rows of {w}"),
-                got: e.to_string(),
-            })
-        };
-        Ok(EpisodeOutcome {
-            report: EpisodeReport {
-                env_steps: self.env_steps,
-                true_return: true_ret,
-                imitation_return: im_ret,
-                length: len,
-                info,
-            },
-            finished,
-            states: shape(o, states)?,
-            actions: shape(ad, actions)?,
-        })
-    }
-}
-
-fn shape_err(e: ndarray::ShapeError) -> Error {
-    Error::ShapeMismatch {
-        what: "one-row view".into(),
-        expected: "a row".into(),
-        got: e.to_string(),
+        log.into_outcome(self.env_steps)
     }
 }
 

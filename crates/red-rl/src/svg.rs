@@ -32,13 +32,13 @@ use ndarray::{Array2, ArrayView2, Axis, concatenate, s};
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 
-use red_core::{Env, Info};
+use red_core::Env;
 use red_nets::{
     Activation, Adam, AdamConfig, Gradients, Init, Mlp, MlpConfig, Optimizer, Tape, Workspace,
     clip_grad_norm, mse_loss,
 };
 
-use crate::episodic::EpisodicLearner;
+use crate::episodic::{EpisodeLog, EpisodicLearner, one_row};
 pub use crate::episodic::{EpisodeOutcome, EpisodeReport};
 use crate::policy::{GaussianPolicy, PolicyWorkspace};
 use crate::replay::{Batch, ReplayBuffer};
@@ -421,9 +421,9 @@ impl Svg1 {
         }
         let x = self
             .policy
-            .prepare_obs(ArrayView2::from_shape((1, obs.len()), obs).map_err(shape_err)?)?;
+            .prepare_obs(ArrayView2::from_shape((1, obs.len()), obs).map_err(one_row)?)?;
         let dist = self.dist_fixed(self.policy.distribution(x.view(), &mut Workspace::new())?);
-        let av = ArrayView2::from_shape((1, a.len()), &a).map_err(shape_err)?;
+        let av = ArrayView2::from_shape((1, a.len()), &a).map_err(one_row)?;
         let logp = dist.log_prob(av)[0];
         Ok((a, logp))
     }
@@ -790,12 +790,8 @@ impl EpisodicLearner for Svg1 {
         let (mut obs, _) = env.reset(Some(seed))?;
         let mut eps_prev: Option<Vec<f64>> = None;
         self.check_observation(&obs)?;
-        let (o, ad) = (self.policy.obs_dim(), self.policy.act_dim());
-        let (mut states, mut actions) = (Vec::new(), Vec::new());
-        let (mut true_ret, mut im_ret, mut len) = (0.0, 0.0, 0usize);
-        let mut finished = false;
-        let mut info = Info::new();
-        while (len as u64) < max_steps {
+        let mut log = EpisodeLog::new(self.policy.obs_dim(), self.policy.act_dim());
+        while (log.length() as u64) < max_steps {
             let (a, logp) = match (self.current_fixed_std(), self.config.noise_rho > 0.0) {
                 (Some(sd), true) => {
                     let rho = self.config.noise_rho;
@@ -824,18 +820,10 @@ impl EpisodicLearner for Svg1 {
             };
             let step = env.step(&a)?;
             self.check_observation(&step.observation)?;
-            let ov = ArrayView2::from_shape((1, obs.len()), &obs).map_err(shape_err)?;
-            let av = ArrayView2::from_shape((1, a.len()), &a).map_err(shape_err)?;
-            let (r, _) = reward.reward_and_grad(ov, av)?;
-            let r = r[0];
-            self.check_finite("imitation reward", r)?;
+            let r = EpisodeLog::reward_of(reward, &obs, &a, self.env_steps)?;
             self.push(&obs, &a, logp, r, &step.observation, step.terminated)?;
-            states.extend_from_slice(&obs);
-            actions.extend_from_slice(&a);
+            log.record(&obs, &a, step.reward, r);
             self.env_steps += 1;
-            true_ret += step.reward;
-            im_ret += r;
-            len += 1;
             let start = self.config.learning_starts;
             if self.env_steps > start {
                 let with_policy = self.env_steps > start + self.config.policy_delay;
@@ -846,39 +834,11 @@ impl EpisodicLearner for Svg1 {
             if step.terminated || step.truncated {
                 let adj = terminal(r);
                 self.adjust_last_reward(adj);
-                im_ret += adj;
-                finished = true;
-                info = step.info;
+                log.end(adj, step.info);
                 break;
             }
             obs = step.observation;
         }
-        let shape = |w: usize, v: Vec<f64>| {
-            Array2::from_shape_vec((len, w), v).map_err(|e| Error::ShapeMismatch {
-                what: "episode pairs".into(),
-                expected: format!("{len} rows of {w}"),
-                got: e.to_string(),
-            })
-        };
-        Ok(EpisodeOutcome {
-            report: EpisodeReport {
-                env_steps: self.env_steps,
-                true_return: true_ret,
-                imitation_return: im_ret,
-                length: len,
-                info,
-            },
-            finished,
-            states: shape(o, states)?,
-            actions: shape(ad, actions)?,
-        })
-    }
-}
-
-fn shape_err(e: ndarray::ShapeError) -> Error {
-    Error::ShapeMismatch {
-        what: "one-row view".into(),
-        expected: "a row".into(),
-        got: e.to_string(),
+        log.into_outcome(self.env_steps)
     }
 }
