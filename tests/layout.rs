@@ -28,8 +28,75 @@ fn module_name(src: &Path, file: &Path) -> String {
     parts.join("::")
 }
 
-/// The crate's modules each module uses (`crate::x`, `crate::x::y`,
-/// `super::x`), outside comments and test modules.
+/// The paths written at the start of `text`: `a::b::C` gives one, a group
+/// `a::{b::C, d::{E, F}}` one per leaf (`a::b::C`, `a::d::E`, `a::d::F`),
+/// as lists of segments.
+fn paths_at(text: &str) -> Vec<Vec<String>> {
+    let ident = |t: &str| -> usize {
+        t.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .unwrap_or(t.len())
+    };
+    let mut prefix = Vec::new();
+    let mut rest = text;
+    loop {
+        if rest.starts_with('{') {
+            // A group: split its inside at top-level commas.
+            let (mut depth, mut start, mut out) = (0, 1, Vec::new());
+            for (i, c) in rest.char_indices() {
+                match c {
+                    '{' => depth += 1,
+                    '}' | ',' if depth == 1 => {
+                        for tail in paths_at(rest[start..i].trim_start()) {
+                            let mut p = prefix.clone();
+                            p.extend(tail);
+                            out.push(p);
+                        }
+                        start = i + 1;
+                        if c == '}' {
+                            return out;
+                        }
+                    }
+                    '}' => depth -= 1,
+                    _ => {}
+                }
+            }
+            return out;
+        }
+        let n = ident(rest);
+        if n == 0 {
+            break;
+        }
+        prefix.push(rest[..n].to_string());
+        match rest[n..].strip_prefix("::") {
+            Some(r) => rest = r,
+            None => break,
+        }
+    }
+    if prefix.is_empty() {
+        Vec::new()
+    } else {
+        vec![prefix]
+    }
+}
+
+/// The names the crate root re-exports (`pub use m::{A, B}` in lib.rs)
+/// and the module each comes from.
+fn root_exports(lib: &str, modules: &BTreeMap<String, PathBuf>) -> BTreeMap<String, String> {
+    let mut out = BTreeMap::new();
+    for (at, _) in lib.match_indices("pub use ") {
+        for path in paths_at(&lib[at + 8..]) {
+            if path.len() >= 2 && modules.contains_key(&path[0]) {
+                out.insert(path[path.len() - 1].clone(), path[0].clone());
+            }
+        }
+    }
+    out
+}
+
+/// The crate's modules each module uses: paths from `crate::`, `super::`
+/// (any number), `self::`, and `use` of a child module by its bare name,
+/// with groups expanded at any depth and names re-exported by the crate
+/// root traced to their module; outside comment lines and test modules.
 fn imports(src: &Path) -> BTreeMap<String, BTreeSet<String>> {
     let mut files = Vec::new();
     rust_files(src, &mut files);
@@ -37,42 +104,73 @@ fn imports(src: &Path) -> BTreeMap<String, BTreeSet<String>> {
         .iter()
         .map(|f| (module_name(src, f), f.clone()))
         .collect();
-    let mut graph = BTreeMap::new();
-    for (name, file) in &modules {
+    let code_of = |file: &Path| -> String {
         let text = std::fs::read_to_string(file).unwrap();
         let code = text.split("#[cfg(test)]").next().unwrap_or("");
-        let parent = name.rsplit_once("::").map_or("", |(p, _)| p);
+        let lines = code.lines().filter(|l| !l.trim_start().starts_with("//"));
+        lines.collect::<Vec<_>>().join("\n")
+    };
+    let exports = ["lib", "main"]
+        .iter()
+        .filter_map(|r| modules.get(*r))
+        .map(|f| root_exports(&code_of(f), &modules))
+        .fold(BTreeMap::new(), |mut a, b| {
+            a.extend(b);
+            a
+        });
+    let mut graph = BTreeMap::new();
+    for (name, file) in &modules {
+        let code = code_of(file);
+        let is_root = name == "lib" || name == "main";
+        let own: Vec<&str> = if is_root {
+            Vec::new()
+        } else {
+            name.split("::").collect()
+        };
         let mut deps = BTreeSet::new();
-        for line in code.lines().filter(|l| !l.trim_start().starts_with("//")) {
-            for (prefix, base) in [("crate::", ""), ("super::", parent)] {
-                for (at, _) in line.match_indices(prefix) {
-                    let path: Vec<&str> = line[at + prefix.len()..]
-                        .split("::")
-                        .map(|s| {
-                            s.split(|c: char| {
-                                !(c.is_ascii_lowercase() || c == '_' || c.is_ascii_digit())
-                            })
-                            .next()
-                            .unwrap_or("")
-                        })
-                        .take(2)
-                        .collect();
-                    let join = |k: usize| {
-                        let p = path[..k].join("::");
-                        if base.is_empty() {
-                            p
-                        } else {
-                            format!("{base}::{p}")
-                        }
-                    };
-                    let found = [2, 1]
-                        .into_iter()
-                        .filter(|&k| k <= path.len() && path[..k].iter().all(|s| !s.is_empty()))
-                        .map(join)
-                        .find(|m| modules.contains_key(m));
-                    if let Some(m) = found.filter(|m| m != name) {
-                        deps.insert(m);
-                    }
+        let word_start = |at: usize| {
+            !code[..at].ends_with(|c: char| c.is_ascii_alphanumeric() || c == '_' || c == ':')
+        };
+        let mut starts: Vec<usize> = ["crate::", "super::", "self::"]
+            .iter()
+            .flat_map(|k| code.match_indices(k).map(|(at, _)| at))
+            .filter(|&at| word_start(at))
+            .collect();
+        // `use child::X` in a module names its child module.
+        starts.extend(code.match_indices("use ").map(|(at, _)| at + 4));
+        for at in starts {
+            let mut base = own.clone();
+            let mut rest = &code[at..];
+            let bare = !["crate::", "super::", "self::"]
+                .iter()
+                .any(|k| rest.starts_with(k));
+            if let Some(r) = rest.strip_prefix("crate::") {
+                base.clear();
+                rest = r;
+            } else if let Some(r) = rest.strip_prefix("self::") {
+                rest = r;
+            } else {
+                while let Some(r) = rest.strip_prefix("super::") {
+                    base.pop();
+                    rest = r;
+                }
+            }
+            for path in paths_at(rest) {
+                let full: Vec<String> = base.iter().map(|s| s.to_string()).chain(path).collect();
+                // The longest prefix that is one of the crate's modules
+                // (the base itself for `super::x` and `self::x`, but not
+                // the crate root: its names are traced below).
+                let first = if base.is_empty() { 1 } else { base.len() };
+                let found = (first..=full.len())
+                    .rev()
+                    .map(|k| full[..k].join("::"))
+                    .find(|m| modules.contains_key(m))
+                    .or_else(|| {
+                        let first = full.get(base.len())?;
+                        (!bare && base.is_empty()).then(|| exports.get(first).cloned())?
+                    });
+                if let Some(m) = found.filter(|m| m != name) {
+                    deps.insert(m);
                 }
             }
         }
@@ -139,7 +237,7 @@ fn the_cycle_finder_finds_a_planted_cycle() {
     let dir = tempfile::tempdir().unwrap();
     let src = dir.path();
     std::fs::create_dir_all(src.join("m")).unwrap();
-    std::fs::write(src.join("lib.rs"), "mod a;\nmod m;\n").unwrap();
+    std::fs::write(src.join("lib.rs"), "mod a;\nmod m;\npub use a::{G, f};\n").unwrap();
     std::fs::write(src.join("a.rs"), "use crate::m::b::Thing;\n").unwrap();
     std::fs::write(src.join("m/mod.rs"), "pub mod b;\n").unwrap();
     std::fs::write(
@@ -149,9 +247,17 @@ fn the_cycle_finder_finds_a_planted_cycle() {
     .unwrap();
     let graph = imports(src);
     assert_eq!(find_cycle(&graph), None, "{graph:?}");
-    std::fs::write(src.join("m/b.rs"), "use crate::a::g;\n").unwrap();
-    let cycle = find_cycle(&imports(src)).expect("a -> m::b -> a");
-    assert!(cycle.contains(&"a".to_string()) && cycle.contains(&"m::b".to_string()));
+    for back in [
+        "use crate::a::g;\n",
+        "use crate::{\n    Error,\n    a::{f, g},\n};\n",
+        "fn h() { super::super::a::g() }\n",
+        "use crate::{m::c::Z, a::{f, g}};\n",
+        "use crate::G;\n",
+    ] {
+        std::fs::write(src.join("m/b.rs"), back).unwrap();
+        let cycle = find_cycle(&imports(src)).unwrap_or_else(|| panic!("a -> m::b -> a: {back}"));
+        assert!(cycle.contains(&"a".to_string()) && cycle.contains(&"m::b".to_string()));
+    }
 }
 
 #[test]

@@ -13,6 +13,18 @@ use crate::config::{ACT_DIM, DT, DriveConfig, NUM_RAYS, OBS_DIM};
 use crate::track::Track;
 use crate::{Error, Result};
 
+/// What one scripted episode achieved (the expert's or the person-like
+/// driver's).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EpisodeSummary {
+    /// Whether the car reached the end of the road.
+    pub success: bool,
+    /// Distance along the road (the return).
+    pub distance: f64,
+    /// Control steps taken.
+    pub steps: usize,
+}
+
 /// Integration sub-steps per 20 Hz control step; collisions and the end of
 /// the road are checked after each (at 100 km/h a sub-step moves 0.35 m).
 const SUBSTEPS: usize = 4;

@@ -13,6 +13,7 @@ use rand::Rng;
 use red_core::{DemoSource, Demos, Env, Seeder, Stream, Trajectory, record_episode};
 
 use crate::config::{ACT_DIM, CONTROL_HZ, DriveConfig, NUM_LANES, OBS_DIM};
+pub use crate::env::EpisodeSummary;
 use crate::env::{CarState, INFO_SUCCESS, World, make_env};
 use crate::{ENV_ID, Result};
 
@@ -140,17 +141,6 @@ fn plan_lanes(lanes: &[usize], start: usize) -> Vec<usize> {
         plan[i - 1] = from[i][plan[i]];
     }
     plan
-}
-
-/// What one expert episode achieved.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EpisodeSummary {
-    /// Whether the car reached the end of the road.
-    pub success: bool,
-    /// Distance along the road (the return).
-    pub distance: f64,
-    /// Control steps taken.
-    pub steps: usize,
 }
 
 /// Drives one expert episode on `config`'s track from reset seed `seed`.

@@ -43,7 +43,7 @@ use red_core::{DemoSource, Demos, Seeder, Stream, Trajectory};
 use serde::{Deserialize, Serialize};
 
 use crate::config::{DT, DriveConfig, NUM_LANES};
-use crate::expert::EpisodeSummary;
+use crate::env::EpisodeSummary;
 use crate::record::{
     DriveKey, HOLD_TICKS, KeyEvent, KeyKind, PEDAL_STEP, RecordStatus, Recorder, VIEW_AHEAD,
     next_steer, pedal_on_grid,

@@ -7,10 +7,8 @@
 
 use std::path::PathBuf;
 
+pub use crate::error::ASSETS_ENV_VAR;
 use crate::{Error, Result};
-
-/// The environment variable naming the folder of the model files.
-pub const ASSETS_ENV_VAR: &str = "RED_MUJOCO_ASSETS";
 
 /// The folder configured when the crate was built, if any.
 const BUILD_TIME_DIR: Option<&str> = option_env!("RED_MUJOCO_ASSETS");

@@ -2,6 +2,11 @@
 
 use std::path::PathBuf;
 
+/// The environment variable naming the folder of the model files (kept
+/// here, where [`Error::AssetNotFound`] names it, and re-exported by
+/// [`crate::assets`]).
+pub const ASSETS_ENV_VAR: &str = "RED_MUJOCO_ASSETS";
+
 /// Errors of `red-mujoco`.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
@@ -12,7 +17,7 @@ pub enum Error {
          from the repository root to fetch Gymnasium's model files, or set {} to a folder \
          that holds them",
         path.display(),
-        crate::assets::ASSETS_ENV_VAR
+        ASSETS_ENV_VAR
     )]
     AssetNotFound {
         /// The model file looked for.

@@ -36,6 +36,7 @@ pub mod autoencoder;
 pub mod cross_val;
 pub mod error;
 pub mod estimator;
+pub mod fitted;
 pub mod input;
 pub mod kernel_pca;
 pub mod reward;
@@ -47,10 +48,8 @@ mod train;
 pub use autoencoder::{Autoencoder, AutoencoderConfig};
 pub use cross_val::held_out_scores;
 pub use error::{Error, Result};
-pub use estimator::{
-    EstimatorConfig, FitProgress, FittedEstimator, SupportEstimatorConfig, SupportModel,
-    no_progress,
-};
+pub use estimator::{FitProgress, SupportEstimatorConfig, SupportModel, no_progress};
+pub use fitted::{EstimatorConfig, FittedEstimator, MODEL_FORMAT, MODEL_VERSION};
 pub use input::InputMap;
 pub use kernel_pca::{Bandwidth, Components, KernelKind, KernelPca, KernelPcaConfig};
 pub use reward::{
