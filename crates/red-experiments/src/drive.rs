@@ -1368,7 +1368,7 @@ fn start_method(
         DriveLearner::Svg => {
             let mut svg = Svg1::new(&run.train.svg, warm.clone(), &mut rng)?;
             if run.train.svg.bc_weight > 0.0 {
-                svg.set_demos(es.to_owned(), ea.to_owned());
+                svg.set_demos(es.to_owned(), ea.to_owned())?;
             }
             Learner::Svg(Box::new(svg))
         }

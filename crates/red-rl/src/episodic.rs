@@ -20,11 +20,9 @@
 
 use std::ops::ControlFlow;
 
-use rand::Rng;
-use red_core::{Env, Space};
-
 use ndarray::{Array2, ArrayView2};
-use red_core::{DifferentiableReward, Info};
+use rand::Rng;
+use red_core::{DifferentiableReward, Env, Info, Space};
 
 use crate::{Error, Result};
 

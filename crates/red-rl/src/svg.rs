@@ -220,6 +220,12 @@ impl SvgConfig {
                 format!("must lie in [0, 1], got {}", self.policy_avg_tau),
             );
         }
+        if !(self.bc_weight.is_finite() && self.bc_weight >= 0.0) {
+            return bad(
+                "bc_weight",
+                format!("must be finite and >= 0, got {}", self.bc_weight),
+            );
+        }
         if !(self.target_tau > 0.0 && self.target_tau <= 1.0) {
             return bad(
                 "target_tau",
@@ -383,8 +389,38 @@ impl Svg1 {
     }
 
     /// Demonstration pairs for the behaviour-cloning term (`bc_weight`).
-    pub fn set_demos(&mut self, states: Array2<f64>, actions: Array2<f64>) {
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] for no pairs, row counts that differ or
+    /// widths other than the policy's; [`Error::NonFinite`] for a value that
+    /// is not finite.
+    pub fn set_demos(&mut self, states: Array2<f64>, actions: Array2<f64>) -> Result<()> {
+        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
+        if states.nrows() == 0
+            || states.nrows() != actions.nrows()
+            || states.ncols() != o
+            || actions.ncols() != a
+        {
+            return Err(Error::ShapeMismatch {
+                what: "SVG demonstration pairs".into(),
+                expected: format!("n >= 1 rows of {o} state and {a} action numbers"),
+                got: format!(
+                    "{} x {} states, {} x {} actions",
+                    states.nrows(),
+                    states.ncols(),
+                    actions.nrows(),
+                    actions.ncols()
+                ),
+            });
+        }
+        if states.iter().chain(actions.iter()).any(|v| !v.is_finite()) {
+            return Err(Error::NonFinite {
+                what: "SVG demonstration pairs".into(),
+                step: self.env_steps,
+            });
+        }
         self.demos = Some((states, actions));
+        Ok(())
     }
 
     /// Unwraps the policy.
@@ -721,7 +757,17 @@ impl Svg1 {
                     let idx: Vec<usize> = (0..bs).map(|_| rng.random_range(0..m)).collect();
                     Some((ds.select(Axis(0), &idx), da.select(Axis(0), &idx)))
                 }
-                _ => None,
+                (None, true) => {
+                    return Err(Error::InvalidConfig {
+                        field: "bc_weight".into(),
+                        reason: format!(
+                            "is {} but the learner has no demonstration pairs \
+                             (Svg1::set_demos); set them or set bc_weight to 0",
+                            self.config.bc_weight
+                        ),
+                    });
+                }
+                (_, false) => None,
             };
             let o = self.update_policy_bc(&b, &inputs, reward, bc.as_ref().map(|(s, a)| (s, a)))?;
             Some(o)

@@ -253,6 +253,20 @@ fn config_validation_names_the_field() {
     for (config, field) in [
         (
             SvgConfig {
+                bc_weight: -1.0,
+                ..SvgConfig::default()
+            },
+            "bc_weight",
+        ),
+        (
+            SvgConfig {
+                bc_weight: f64::NAN,
+                ..SvgConfig::default()
+            },
+            "bc_weight",
+        ),
+        (
+            SvgConfig {
                 gamma: 1.0,
                 ..SvgConfig::default()
             },
@@ -595,4 +609,52 @@ fn scheduled_fixed_std_and_averaged_policy_learn_to_reach() {
         after < 0.2 && after < 0.4 * before,
         "final distance {before} -> {after}"
     );
+}
+
+#[test]
+fn the_bc_term_needs_fitting_demonstration_pairs() {
+    let config = SvgConfig {
+        bc_weight: 3.0,
+        ..small_config()
+    };
+    let (mut svg, mut rng) = fresh(0, &config);
+    for (s, a) in [
+        (Array2::zeros((0, 2)), Array2::zeros((0, 2))),
+        (Array2::zeros((5, 2)), Array2::zeros((4, 2))),
+        (Array2::zeros((5, 3)), Array2::zeros((5, 2))),
+        (Array2::zeros((5, 2)), Array2::zeros((5, 1))),
+    ] {
+        let e = svg.set_demos(s, a).unwrap_err().to_string();
+        assert!(e.contains("demonstration pairs"), "{e}");
+    }
+    let mut bad = Array2::zeros((5, 2));
+    bad[[2, 1]] = f64::NAN;
+    assert!(svg.set_demos(bad, Array2::zeros((5, 2))).is_err());
+    // Without pairs the term cannot be computed: an error, not a silent skip.
+    let e = svg
+        .train(
+            &mut Reach::default(),
+            &ReachReward,
+            200,
+            None,
+            &|_| 0.0,
+            &mut rng,
+            &mut |_| {},
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("bc_weight") && e.contains("set_demos"), "{e}");
+    let (mut svg, mut rng) = fresh(0, &config);
+    svg.set_demos(Array2::zeros((5, 2)), Array2::zeros((5, 2)))
+        .unwrap();
+    svg.train(
+        &mut Reach::default(),
+        &ReachReward,
+        200,
+        None,
+        &|_| 0.0,
+        &mut rng,
+        &mut |_| {},
+    )
+    .unwrap();
 }
