@@ -94,10 +94,14 @@ impl Gmmil {
     ) -> Result<Self> {
         config.validate()?;
         let expert = concat_pairs(expert_states, expert_actions)?;
-        if expert.nrows() == 0 {
+        if expert.nrows() == 0 || expert.ncols() == 0 {
             return Err(Error::InvalidConfig {
                 field: "expert pairs".into(),
-                reason: "need at least one expert pair".into(),
+                reason: format!(
+                    "need at least one expert pair of at least one number, got {} x {}",
+                    expert.nrows(),
+                    expert.ncols()
+                ),
             });
         }
         if expert.iter().any(|v| !v.is_finite()) {
@@ -138,28 +142,31 @@ impl Gmmil {
         k
     }
 
-    fn mean_kernel(&self, x: ArrayView1<'_, f64>, set: &Array2<f64>) -> f64 {
+    fn mean_kernel(&self, x: ArrayView1<'_, f64>, set: &Array2<f64>, d2: &mut Vec<f64>) -> f64 {
+        let x = x.as_standard_layout();
+        let set = set.as_standard_layout();
+        sq_dists(
+            x.as_slice().unwrap_or_default(),
+            set.as_slice().unwrap_or_default(),
+            d2,
+        );
         let mut total = 0.0;
-        for row in set.rows() {
-            let d2: f64 = row
-                .iter()
-                .zip(x.iter())
-                .map(|(a, b)| (a - b) * (a - b))
-                .sum();
-            total += self.kernel(d2);
+        for &d in d2.iter() {
+            total += self.kernel(d);
         }
         total / set.nrows() as f64
     }
 
     fn raw_rewards(&self, x: &Array2<f64>) -> Array1<f64> {
+        let mut d2 = Vec::new();
         x.rows()
             .into_iter()
             .map(|row| {
-                let e = self.mean_kernel(row, &self.expert);
+                let e = self.mean_kernel(row, &self.expert, &mut d2);
                 let p = self
                     .policy
                     .as_ref()
-                    .map_or(0.0, |p| self.mean_kernel(row, p));
+                    .map_or(0.0, |p| self.mean_kernel(row, p, &mut d2));
                 e - p
             })
             .collect()
@@ -178,6 +185,41 @@ impl Gmmil {
             });
         }
         concat_pairs(states, actions)
+    }
+}
+
+/// The squared distances from `x` to each row of `set` (rows of
+/// `x.len()` numbers, one after another), into `out` in row order. Each is
+/// summed over the dimensions in order, as a plain loop would, so the
+/// numbers are the same to the bit; four rows go at a time so that their
+/// sums overlap (a lone sum waits on its previous addition).
+fn sq_dists(x: &[f64], set: &[f64], out: &mut Vec<f64>) {
+    out.clear();
+    let dim = x.len();
+    debug_assert!(dim > 0, "GMMIL pairs have at least one number");
+    let mut blocks = set.chunks_exact(4 * dim);
+    for block in &mut blocks {
+        let (a, rest) = block.split_at(dim);
+        let (b, rest) = rest.split_at(dim);
+        let (c, d) = rest.split_at(dim);
+        let (mut s0, mut s1, mut s2, mut s3) = (0.0, 0.0, 0.0, 0.0);
+        for k in 0..dim {
+            let xk = x[k];
+            let (t0, t1, t2, t3) = (a[k] - xk, b[k] - xk, c[k] - xk, d[k] - xk);
+            s0 += t0 * t0;
+            s1 += t1 * t1;
+            s2 += t2 * t2;
+            s3 += t3 * t3;
+        }
+        out.extend_from_slice(&[s0, s1, s2, s3]);
+    }
+    for y in blocks.remainder().chunks_exact(dim) {
+        let mut s = 0.0;
+        for k in 0..dim {
+            let t = y[k] - x[k];
+            s += t * t;
+        }
+        out.push(s);
     }
 }
 
@@ -225,27 +267,27 @@ impl Gmmil {
     ) -> Result<(Array1<f64>, Array2<f64>)> {
         let x = self.pairs(states, actions)?;
         let (n, o) = (x.nrows(), self.obs_dim);
+        let width = x.ncols();
         let mut r = Array1::zeros(n);
         let mut g = Array2::zeros((n, self.act_dim));
         let mut grad = vec![0.0; self.act_dim];
+        let mut d2 = Vec::new();
+        let expert = self.expert.as_standard_layout();
+        let policy = self.policy.as_ref().map(|p| p.as_standard_layout());
+        let sets = [Some((&expert, 1.0)), policy.as_ref().map(|p| (p, -1.0))];
         for (i, row) in x.rows().into_iter().enumerate() {
-            let mut sets = vec![(&self.expert, 1.0)];
-            if let Some(p) = &self.policy {
-                sets.push((p, -1.0));
-            }
-            for (set, sign) in sets {
+            let row = row.as_standard_layout();
+            let row = row.as_slice().unwrap_or_default();
+            for (set, sign) in sets.iter().flatten() {
+                let ys = set.as_slice().unwrap_or_default();
+                sq_dists(row, ys, &mut d2);
                 let scale = sign / set.nrows() as f64;
                 grad.iter_mut().for_each(|v| *v = 0.0);
                 let mut total = 0.0;
-                for y in set.rows() {
-                    let d2: f64 = y
-                        .iter()
-                        .zip(row.iter())
-                        .map(|(a, b)| (a - b) * (a - b))
-                        .sum();
+                for (y, &d) in ys.chunks_exact(width).zip(d2.iter()) {
                     let mut dk = 0.0;
                     for h in std::iter::once(self.h1).chain(self.h2) {
-                        let k = (-d2 / h).exp();
+                        let k = (-d / h).exp();
                         total += k;
                         dk -= 2.0 * k / h;
                     }
@@ -388,6 +430,30 @@ mod tests {
         let a = Array2::zeros((3, 0));
         let g = Gmmil::new(GmmilConfig::default(), e.view(), a.view()).unwrap();
         assert_eq!(g.bandwidths().0, 4.0);
+    }
+
+    #[test]
+    fn blocked_distances_are_the_plain_loop_to_the_bit() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut out = Vec::new();
+        for dim in [1, 2, 3, 7, 24] {
+            for rows in 0..10 {
+                let x: Vec<f64> = (0..dim).map(|_| rng.random_range(-3.0..3.0)).collect();
+                let set: Vec<f64> = (0..rows * dim)
+                    .map(|_| rng.random_range(-3.0..3.0) * 1e3_f64.powi(rng.random_range(-2..3)))
+                    .collect();
+                sq_dists(&x, &set, &mut out);
+                let plain: Vec<f64> = set
+                    .chunks_exact(dim)
+                    .map(|y| y.iter().zip(&x).map(|(a, b)| (a - b) * (a - b)).sum())
+                    .collect();
+                assert_eq!(out.len(), rows);
+                for (a, b) in out.iter().zip(&plain) {
+                    assert_eq!(a.to_bits(), b.to_bits(), "dim {dim} rows {rows}");
+                }
+            }
+        }
     }
 
     #[test]
