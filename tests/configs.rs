@@ -291,6 +291,10 @@ fn experiment_configs() {
             ("/svg/gamma", json!(1.5), "gamma"),
             ("/policy/hidden", json!([0]), "train.policy"),
             ("/select_episodes", json!(0), "select_episodes"),
+            ("/demo_road_share", json!(1.5), "demo_road_share"),
+            // Default train_roads is 0: a share without other roads.
+            ("/demo_road_share", json!(0.5), "demo_road_share"),
+            ("/demo_starts", json!(-0.1), "demo_starts"),
         ],
     );
     check::<red_experiments::toy::ToyConfig, _>(

@@ -290,10 +290,21 @@ pub struct DriveEnv {
     action_space: Space,
     in_episode: bool,
     scratch: Vec<f64>,
-    /// `(first, count)` of [`DriveEnv::set_road_pool`].
-    road_pool: Option<(u64, u64)>,
+    /// The roads of [`DriveEnv::set_road_pool`].
+    road_pool: Option<RoadPool>,
     /// `(states, share)` of [`DriveEnv::set_start_states`].
     start_pool: Option<(Vec<CarState>, f64)>,
+}
+
+/// The roads a seeded reset draws from ([`DriveEnv::set_road_pool`]).
+#[derive(Debug, Clone, Copy)]
+struct RoadPool {
+    first: u64,
+    count: u64,
+    /// The road of the env when the pool was set.
+    home: u64,
+    /// Share of seeded resets on `home`.
+    home_share: f64,
 }
 
 /// The default scenario wrapped in its time limit (`config.time_limit`).
@@ -350,9 +361,47 @@ impl DriveEnv {
     /// Makes every [`Env::reset`] with a seed drive on one of `count` roads:
     /// the road of track seed `first + seed % count` (other settings as
     /// this env's), so training can see many roads while evaluation keeps
-    /// its own. `count = 0` turns it off (one road, as built).
+    /// its own. `count = 0` turns it off (one road, as built). The road the
+    /// env is on when this is called is its home road (see
+    /// [`DriveEnv::set_home_share`]).
     pub fn set_road_pool(&mut self, first: u64, count: u64) {
-        self.road_pool = (count > 0).then_some((first, count));
+        self.road_pool = (count > 0).then_some(RoadPool {
+            first,
+            count,
+            home: self.world.config.track_seed,
+            home_share: 0.0,
+        });
+    }
+
+    /// With a road pool, makes a share of the seeded resets drive on the
+    /// home road (the road the env was on when the pool was set: for
+    /// training, the demonstration's) instead of a pool road, drawn by the
+    /// reset's random stream. `share = 0` (the default) draws no random
+    /// number, so episodes are as without it.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for a share outside `[0, 1]` or no road
+    /// pool set.
+    pub fn set_home_share(&mut self, share: f64) -> Result<()> {
+        if !(0.0..=1.0).contains(&share) {
+            return Err(Error::InvalidConfig {
+                field: "home share",
+                reason: format!(
+                    "the share of episodes on the home road must be in [0, 1], got {share}"
+                ),
+            });
+        }
+        match &mut self.road_pool {
+            Some(pool) => pool.home_share = share,
+            None if share > 0.0 => {
+                return Err(Error::InvalidConfig {
+                    field: "home share",
+                    reason: "a share of episodes on the home road needs a road pool".into(),
+                });
+            }
+            None => {}
+        }
+        Ok(())
     }
 
     /// Makes a share of the episodes start at one of `states` (drawn by the
@@ -484,8 +533,13 @@ impl Env for DriveEnv {
     fn reset(&mut self, seed: Option<u64>) -> red_core::Result<(Vec<f64>, Info)> {
         if let Some(s) = seed {
             self.rng = ChaCha8Rng::seed_from_u64(s);
-            if let Some((first, count)) = self.road_pool {
-                let track_seed = first.wrapping_add(s % count);
+            if let Some(pool) = self.road_pool {
+                let home = pool.home_share > 0.0 && self.rng.random::<f64>() < pool.home_share;
+                let track_seed = if home {
+                    pool.home
+                } else {
+                    pool.first.wrapping_add(s % pool.count)
+                };
                 if track_seed != self.world.config.track_seed {
                     let config = DriveConfig {
                         track_seed,
@@ -583,6 +637,50 @@ mod tests {
         env.set_road_pool(0, 0);
         env.reset(Some(2)).unwrap();
         assert_eq!(env.config().track_seed, 501);
+    }
+
+    #[test]
+    fn a_home_share_sends_some_seeded_resets_back_to_the_home_road() {
+        let config = DriveConfig {
+            track_seed: 7,
+            ..DriveConfig::default()
+        };
+        let mut env = DriveEnv::new(&config).unwrap();
+        // No pool: a share is refused, share 0 is accepted.
+        assert!(env.set_home_share(0.5).is_err());
+        env.set_home_share(0.0).unwrap();
+        env.set_road_pool(500, 3);
+        assert!(env.set_home_share(1.5).is_err());
+        assert!(env.set_home_share(f64::NAN).is_err());
+        let roads = |env: &mut DriveEnv| -> Vec<u64> {
+            (0..200)
+                .map(|s| {
+                    env.reset(Some(s)).unwrap();
+                    env.config().track_seed
+                })
+                .collect()
+        };
+        // Share 0: every seeded reset on the pool's road, as before.
+        let pool_only = roads(&mut env);
+        assert!(pool_only.iter().all(|&t| (500..503).contains(&t)));
+        // Share 1: always home.
+        env.set_home_share(1.0).unwrap();
+        assert!(roads(&mut env).iter().all(|&t| t == 7));
+        // Share 0.5: about half home, the others on the road of seed % 3,
+        // the same draw for the same seed.
+        env.set_home_share(0.5).unwrap();
+        let mixed = roads(&mut env);
+        let home = mixed.iter().filter(|&&t| t == 7).count();
+        assert!((70..=130).contains(&home), "{home} of 200 resets home");
+        for (s, (&m, &p)) in mixed.iter().zip(&pool_only).enumerate() {
+            assert!(m == 7 || m == p, "seed {s}: road {m}, pool road {p}");
+        }
+        assert_eq!(roads(&mut env), mixed);
+        // The home road is the demo's own layout again.
+        let fresh = DriveEnv::new(&config).unwrap();
+        env.set_home_share(1.0).unwrap();
+        env.reset(Some(3)).unwrap();
+        assert_eq!(env.track().obstacles, fresh.track().obstacles);
     }
 
     #[test]

@@ -153,6 +153,11 @@ pub struct DriveTrainConfig {
     /// so it applies on any road. Selection checks stay on the demo's
     /// road.
     pub train_roads: u64,
+    /// With `train_roads > 0`, the share of training episodes driven on
+    /// the demonstration's own road instead of one of the `train_roads`
+    /// (drawn by the episode's reset seed; our addition). 0 (the default)
+    /// trains on the other roads only.
+    pub demo_road_share: f64,
     /// Share of training episodes that start at a state the demonstration
     /// passed through (drawn uniformly from its replay on the demo's road,
     /// with the usual start noise) instead of at the road's start:
@@ -251,6 +256,7 @@ impl Default for DriveTrainConfig {
             select_episodes: 5,
             checkpoint_every: 5_000,
             train_roads: 0,
+            demo_road_share: 0.0,
             demo_starts: 0.0,
         }
     }
@@ -423,6 +429,24 @@ impl DriveTrainConfig {
                      demonstration state), got {}",
                     self.demo_starts
                 ),
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.demo_road_share) {
+            return Err(invalid(
+                "train.demo_road_share",
+                format!(
+                    "must lie in [0, 1] (the share of training episodes on the demonstration's \
+                     road), got {}",
+                    self.demo_road_share
+                ),
+            ));
+        }
+        if self.demo_road_share > 0.0 && self.train_roads == 0 {
+            return Err(invalid(
+                "train.demo_road_share",
+                "needs train_roads > 0 (without other roads every training episode is on the \
+                 demonstration's road already)"
+                    .into(),
             ));
         }
         if self.demo_starts > 0.0 && self.train_roads > 0 {
@@ -1289,6 +1313,9 @@ fn train_method(
     let mut env = make_env(&run.drive)?;
     env.inner_mut()
         .set_road_pool(TRAIN_FIRST_TRACK_SEED, cfg.train_roads);
+    env.inner_mut()
+        .set_home_share(cfg.demo_road_share)
+        .with_context(|| "train.demo_road_share")?;
     env.inner_mut()
         .set_start_states(starts.to_vec(), cfg.demo_starts)
         .with_context(|| "train.demo_starts")?;
