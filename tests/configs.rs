@@ -291,10 +291,30 @@ fn experiment_configs() {
             ("/svg/gamma", json!(1.5), "gamma"),
             ("/policy/hidden", json!([0]), "train.policy"),
             ("/select_episodes", json!(0), "select_episodes"),
-            ("/demo_road_share", json!(1.5), "demo_road_share"),
             // Default train_roads is 0: a share without other roads.
             ("/demo_road_share", json!(0.5), "demo_road_share"),
             ("/demo_starts", json!(-0.1), "demo_starts"),
+        ],
+    );
+    // With other roads, a share in [0, 1] is accepted and one outside it
+    // is refused by the range check.
+    let roads = red_experiments::drive::DriveTrainConfig {
+        train_roads: 50,
+        demo_road_share: 0.5,
+        ..Default::default()
+    };
+    check_from(
+        "DriveTrainConfig with train_roads",
+        &roads,
+        |c: &red_experiments::drive::DriveTrainConfig| c.validate(),
+        &[
+            ("/demo_road_share", json!(1.5), "must lie in [0, 1]"),
+            ("/demo_road_share", json!(-0.5), "must lie in [0, 1]"),
+            (
+                "/demo_starts",
+                json!(0.5),
+                "cannot be combined with train_roads",
+            ),
         ],
     );
     check::<red_experiments::toy::ToyConfig, _>(

@@ -292,6 +292,11 @@ pub struct DriveEnv {
     scratch: Vec<f64>,
     /// The roads of [`DriveEnv::set_road_pool`].
     road_pool: Option<RoadPool>,
+    /// The road the env was built on (track seed).
+    home_track_seed: u64,
+    /// Share of seeded resets on the home road while a pool is set
+    /// ([`DriveEnv::set_home_share`]).
+    home_share: f64,
     /// `(states, share)` of [`DriveEnv::set_start_states`].
     start_pool: Option<(Vec<CarState>, f64)>,
 }
@@ -301,10 +306,6 @@ pub struct DriveEnv {
 struct RoadPool {
     first: u64,
     count: u64,
-    /// The road of the env when the pool was set.
-    home: u64,
-    /// Share of seeded resets on `home`.
-    home_share: f64,
 }
 
 /// The default scenario wrapped in its time limit (`config.time_limit`).
@@ -354,34 +355,32 @@ impl DriveEnv {
             in_episode: false,
             scratch: Vec::with_capacity(OBS_DIM),
             road_pool: None,
+            home_track_seed: config.track_seed,
+            home_share: 0.0,
             start_pool: None,
         })
     }
 
-    /// Makes every [`Env::reset`] with a seed drive on one of `count` roads:
-    /// the road of track seed `first + seed % count` (other settings as
-    /// this env's), so training can see many roads while evaluation keeps
-    /// its own. `count = 0` turns it off (one road, as built). The road the
-    /// env is on when this is called is its home road (see
-    /// [`DriveEnv::set_home_share`]).
+    /// Makes every [`Env::reset`] with a seed drive on one of `count` roads
+    /// (but for the share of [`DriveEnv::set_home_share`]): the road of
+    /// track seed `first + seed % count` (other settings as this env's),
+    /// so training can see many roads while evaluation keeps its own.
+    /// `count = 0` turns it off: the next seeded reset drives the road the
+    /// env was built on again.
     pub fn set_road_pool(&mut self, first: u64, count: u64) {
-        self.road_pool = (count > 0).then_some(RoadPool {
-            first,
-            count,
-            home: self.world.config.track_seed,
-            home_share: 0.0,
-        });
+        self.road_pool = (count > 0).then_some(RoadPool { first, count });
     }
 
     /// With a road pool, makes a share of the seeded resets drive on the
-    /// home road (the road the env was on when the pool was set: for
-    /// training, the demonstration's) instead of a pool road, drawn by the
+    /// home road (the road the env was built on: for training, the run's,
+    /// which is the demonstration's) instead of a pool road, drawn by the
     /// reset's random stream. `share = 0` (the default) draws no random
-    /// number, so episodes are as without it.
+    /// number, so episodes are as without it. The share outlives a later
+    /// [`DriveEnv::set_road_pool`].
     ///
     /// # Errors
-    /// [`Error::InvalidConfig`] for a share outside `[0, 1]` or no road
-    /// pool set.
+    /// [`Error::InvalidConfig`] for a share outside `[0, 1]`, or above 0
+    /// with no road pool set.
     pub fn set_home_share(&mut self, share: f64) -> Result<()> {
         if !(0.0..=1.0).contains(&share) {
             return Err(Error::InvalidConfig {
@@ -391,16 +390,14 @@ impl DriveEnv {
                 ),
             });
         }
-        match &mut self.road_pool {
-            Some(pool) => pool.home_share = share,
-            None if share > 0.0 => {
-                return Err(Error::InvalidConfig {
-                    field: "home share",
-                    reason: "a share of episodes on the home road needs a road pool".into(),
-                });
-            }
-            None => {}
+        if share > 0.0 && self.road_pool.is_none() {
+            return Err(Error::InvalidConfig {
+                field: "home share",
+                reason: "a share of episodes on the home road needs a road pool: set one first"
+                    .into(),
+            });
         }
+        self.home_share = share;
         Ok(())
     }
 
@@ -533,20 +530,22 @@ impl Env for DriveEnv {
     fn reset(&mut self, seed: Option<u64>) -> red_core::Result<(Vec<f64>, Info)> {
         if let Some(s) = seed {
             self.rng = ChaCha8Rng::seed_from_u64(s);
-            if let Some(pool) = self.road_pool {
-                let home = pool.home_share > 0.0 && self.rng.random::<f64>() < pool.home_share;
-                let track_seed = if home {
-                    pool.home
-                } else {
+            // A pool road, or the road the env was built on (no pool, or the
+            // home share's draw; no number is drawn at share 0).
+            let track_seed = match self.road_pool {
+                Some(pool)
+                    if !(self.home_share > 0.0 && self.rng.random::<f64>() < self.home_share) =>
+                {
                     pool.first.wrapping_add(s % pool.count)
-                };
-                if track_seed != self.world.config.track_seed {
-                    let config = DriveConfig {
-                        track_seed,
-                        ..self.world.config.clone()
-                    };
-                    self.world = World::new(&config)?;
                 }
+                _ => self.home_track_seed,
+            };
+            if track_seed != self.world.config.track_seed {
+                let config = DriveConfig {
+                    track_seed,
+                    ..self.world.config.clone()
+                };
+                self.world = World::new(&config)?;
             }
         }
         let c = self.world.config.clone();
@@ -631,12 +630,20 @@ mod tests {
         env.reset(Some(7)).unwrap();
         assert_eq!(env.config().track_seed, 501);
         assert_eq!(env.track().obstacles, layout);
-        // Without a seed the road stays; with the pool off, it never moves.
+        // Without a seed the road stays; with the pool off, a seeded reset
+        // drives the road the env was built on again.
         env.reset(None).unwrap();
         assert_eq!(env.config().track_seed, 501);
         env.set_road_pool(0, 0);
         env.reset(Some(2)).unwrap();
-        assert_eq!(env.config().track_seed, 501);
+        assert_eq!(env.config().track_seed, DriveConfig::default().track_seed);
+        assert_eq!(
+            env.track().obstacles,
+            DriveEnv::new(&DriveConfig::default())
+                .unwrap()
+                .track()
+                .obstacles
+        );
     }
 
     #[test]
@@ -652,34 +659,48 @@ mod tests {
         env.set_road_pool(500, 3);
         assert!(env.set_home_share(1.5).is_err());
         assert!(env.set_home_share(f64::NAN).is_err());
-        let roads = |env: &mut DriveEnv| -> Vec<u64> {
+        let roads = |env: &mut DriveEnv| -> Vec<(u64, Vec<f64>)> {
             (0..200)
                 .map(|s| {
-                    env.reset(Some(s)).unwrap();
-                    env.config().track_seed
+                    let (obs, _) = env.reset(Some(s)).unwrap();
+                    (env.config().track_seed, obs)
                 })
                 .collect()
         };
-        // Share 0: every seeded reset on the pool's road, as before.
+        // Share 0: every seeded reset starts exactly as on the pool's road
+        // without any share (no random number drawn for it).
         let pool_only = roads(&mut env);
-        assert!(pool_only.iter().all(|&t| (500..503).contains(&t)));
+        for (s, (track, obs)) in pool_only.iter().enumerate() {
+            let mut plain = DriveEnv::new(&DriveConfig {
+                track_seed: 500 + s as u64 % 3,
+                ..config.clone()
+            })
+            .unwrap();
+            assert_eq!(*track, 500 + s as u64 % 3);
+            assert_eq!(*obs, plain.reset(Some(s as u64)).unwrap().0, "seed {s}");
+        }
         // Share 1: always home.
         env.set_home_share(1.0).unwrap();
-        assert!(roads(&mut env).iter().all(|&t| t == 7));
+        assert!(roads(&mut env).iter().all(|(t, _)| *t == 7));
         // Share 0.5: about half home, the others on the road of seed % 3,
         // the same draw for the same seed.
         env.set_home_share(0.5).unwrap();
         let mixed = roads(&mut env);
-        let home = mixed.iter().filter(|&&t| t == 7).count();
+        let home = mixed.iter().filter(|(t, _)| *t == 7).count();
         assert!((70..=130).contains(&home), "{home} of 200 resets home");
-        for (s, (&m, &p)) in mixed.iter().zip(&pool_only).enumerate() {
-            assert!(m == 7 || m == p, "seed {s}: road {m}, pool road {p}");
+        for (s, ((m, _), (p, _))) in mixed.iter().zip(&pool_only).enumerate() {
+            assert!(*m == 7 || m == p, "seed {s}: road {m}, pool road {p}");
         }
         assert_eq!(roads(&mut env), mixed);
-        // The home road is the demo's own layout again.
-        let fresh = DriveEnv::new(&config).unwrap();
+        // Setting the pool again, while on a pool road, keeps the home road
+        // (the one built) and the share.
+        env.reset(Some(1)).unwrap();
+        env.set_road_pool(500, 3);
+        assert_eq!(roads(&mut env), mixed);
         env.set_home_share(1.0).unwrap();
         env.reset(Some(3)).unwrap();
+        assert_eq!(env.config().track_seed, 7);
+        let fresh = DriveEnv::new(&config).unwrap();
         assert_eq!(env.track().obstacles, fresh.track().obstacles);
     }
 

@@ -5,9 +5,13 @@
 //! the episodes of a still (zero-action) and of a random (N(0, 1)) policy.
 //!
 //! `cargo run --release -p red-experiments --example red_reward_probe --
-//! FILE... [--seed N]` (each file's task is read from the file). The fit is
-//! the one `red-cli mujoco train --method red --demo FILE --seed N` makes:
-//! same config, same estimator stream.
+//! FILE... [--seed N] [--stored-actions]` (each file's task is read from the
+//! file). The fit is the one `red-cli mujoco train --method red --demo FILE
+//! --seed N` makes: same config, same estimator stream. Where the task's
+//! RED clips actions for its reward (`RunConfig::reward_clips_actions`,
+//! Hopper since session 27), the demo actions are clipped for the fit and
+//! every scored action is clipped too, as in the run; `--stored-actions`
+//! turns that off (the reward of session 25's probe table).
 use ndarray::{Array1, Array2, ArrayView2};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -22,24 +26,27 @@ type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
 fn main() -> AnyResult<()> {
     let mut files = Vec::new();
     let mut seed = 0u64;
+    let mut stored = false;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         if a == "--seed" {
             seed = args.next().ok_or("--seed needs a value")?.parse()?;
+        } else if a == "--stored-actions" {
+            stored = true;
         } else {
             files.push(a);
         }
     }
     if files.is_empty() {
-        return Err("usage: red_reward_probe FILE... [--seed N]".into());
+        return Err("usage: red_reward_probe FILE... [--seed N] [--stored-actions]".into());
     }
     for f in &files {
-        probe(f, seed)?;
+        probe(f, seed, stored)?;
     }
     Ok(())
 }
 
-fn probe(file: &str, seed: u64) -> AnyResult<()> {
+fn probe(file: &str, seed: u64, stored: bool) -> AnyResult<()> {
     let raw = red_core::Demos::read(file.as_ref())?;
     let env_id: EnvId = raw.env_id.parse()?;
     let demos = load_demos(file.as_ref(), env_id)?;
@@ -85,7 +92,17 @@ fn probe(file: &str, seed: u64) -> AnyResult<()> {
         .collect();
     println!("per-dimension action std: {stds:.3?}; max |a|: {maxabs:.2?}");
 
-    let cfg = RunConfig::for_task(env_id, Method::Red);
+    let mut cfg = RunConfig::for_task(env_id, Method::Red);
+    if stored {
+        cfg.reward_clips_actions = false;
+    }
+    let clips = cfg.reward_clips_actions;
+    // The pairs the run fits on: as stored, or with the actions clipped.
+    let fit_a = if clips { clip(a.view()) } else { a.clone() };
+    println!(
+        "reward fitted on the actions {}, and scores them so",
+        if clips { "clipped" } else { "as stored" }
+    );
     let settings = cfg.reward_settings();
     let seeder = Seeder::new(seed);
     let mut rng = seeder.rng(Stream::Estimator);
@@ -94,7 +111,7 @@ fn probe(file: &str, seed: u64) -> AnyResult<()> {
         Method::Red,
         &settings,
         s.view(),
-        a.view(),
+        fit_a.view(),
         &mut rng,
         seeder.derive(Stream::Estimator),
     )?
@@ -114,7 +131,12 @@ fn probe(file: &str, seed: u64) -> AnyResult<()> {
     let mut rows: Vec<(String, Array1<f64>)> = Vec::new();
     let mut score =
         |name: &str, st: ArrayView2<'_, f64>, ac: ArrayView2<'_, f64>| -> AnyResult<()> {
-            rows.push((name.to_string(), reward.rewards(st, ac)?));
+            let r = if clips {
+                reward.rewards(st, clip(ac).view())?
+            } else {
+                reward.rewards(st, ac)?
+            };
+            rows.push((name.to_string(), r));
             Ok(())
         };
     score("demo pairs", s.view(), a.view())?;

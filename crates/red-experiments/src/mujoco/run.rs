@@ -129,9 +129,10 @@ pub struct RunConfig {
     /// reach 90% of the demos' return with it against 9 of 12 without, mean
     /// 3427.6 against 3295.3; on raw demos (40.5% of the action entries
     /// outside [-1, 1]) 3547.58, 3466.41, 3499.48 against 3586.55, 2579.05,
-    /// 3124.60. On Walker2d (seed 0, a 4262 expert's raw demos) 4174.93
-    /// against 4298.06: not needed there, so not its default; HalfCheetah,
-    /// Ant and Reacher were not measured. A `config.json` without the
+    /// 3124.60. On Walker2d (a 4262 expert's clipped and raw demos, seeds
+    /// 0-1) 4189.12, 3593.62, 4174.93, 3121.73 with it against 4215.13,
+    /// 4248.34, 4298.06, 4100.76 without: not needed there, so not its
+    /// default; HalfCheetah, Ant and Reacher were not measured. A `config.json` without the
     /// field (written before session 25) reads as false, as it ran.
     #[serde(default)]
     pub reward_clips_actions: bool,
@@ -1602,6 +1603,37 @@ mod tests {
         let (s2, a) = reward_pairs(&cfg, &d, &b).unwrap();
         assert_eq!(s2, s);
         assert_eq!(a, ndarray::array![[1.0, -0.5], [-1.0, 1.0]]);
+    }
+
+    #[test]
+    fn the_shipped_red_settings_files_reproduce_runs_made_without_clipping() {
+        // Every data/mujoco-red-* file restores settings of runs made before
+        // Hopper's RED clipped by default, so each must keep it off.
+        let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data");
+        let mut files = Vec::new();
+        for dir in [data.clone(), data.join("mujoco-red-first-settings")] {
+            for e in std::fs::read_dir(&dir).unwrap() {
+                let path = e.unwrap().path();
+                let name = path.file_name().unwrap().to_string_lossy().into_owned();
+                let in_first = dir.ends_with("mujoco-red-first-settings");
+                if name.ends_with(".json") && (in_first || name.starts_with("mujoco-red-")) {
+                    files.push(path);
+                }
+            }
+        }
+        assert!(files.len() >= 8, "{files:?}");
+        for path in files {
+            let name = path.file_stem().unwrap().to_string_lossy().into_owned();
+            let env = name
+                .split('-')
+                .find_map(|w| w.parse::<EnvId>().ok())
+                .unwrap_or_else(|| panic!("no task in the name {}", path.display()));
+            let text = std::fs::read_to_string(&path).unwrap();
+            let cfg = RunConfig::for_task(env, Method::Red)
+                .with_overrides(&text, &path)
+                .unwrap();
+            assert!(!cfg.reward_clips_actions, "{}", path.display());
+        }
     }
 
     #[test]
