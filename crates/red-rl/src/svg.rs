@@ -117,6 +117,18 @@ pub struct SvgConfig {
     /// is the conditional one, so the importance weights correct for it.
     /// 0: white noise.
     pub noise_rho: f64,
+    /// Weight of a self-imitation term (our addition, after Oh et al.
+    /// 2018, "Self-Imitation Learning"): the learner keeps its
+    /// `sil_episodes` training episodes of highest own return (the
+    /// learning reward plus the terminal adjustment, never a true reward)
+    /// and adds `sil_weight * mean m_i ||mu(s_i) - a_i||^2` on pairs drawn
+    /// from them, where `m_i` is 1 when the pair's discounted own return
+    /// from there on exceeds the value function's estimate `V(s_i)` and 0
+    /// otherwise (so the steps into a crash are not imitated). 0: off (no
+    /// random number is drawn for it).
+    pub sil_weight: f64,
+    /// Episodes kept for `sil_weight`.
+    pub sil_episodes: usize,
 }
 
 impl Default for SvgConfig {
@@ -143,6 +155,8 @@ impl Default for SvgConfig {
             importance_weights: true,
             bc_weight: 0.0,
             noise_rho: 0.0,
+            sil_weight: 0.0,
+            sil_episodes: 4,
         }
     }
 }
@@ -226,6 +240,18 @@ impl SvgConfig {
                 format!("must be finite and >= 0, got {}", self.bc_weight),
             );
         }
+        if !(self.sil_weight.is_finite() && self.sil_weight >= 0.0) {
+            return bad(
+                "sil_weight",
+                format!("must be finite and >= 0, got {}", self.sil_weight),
+            );
+        }
+        if self.sil_weight > 0.0 && self.sil_episodes == 0 {
+            return bad(
+                "sil_episodes",
+                "must be at least 1 when sil_weight > 0".into(),
+            );
+        }
         if !(self.target_tau > 0.0 && self.target_tau <= 1.0) {
             return bad(
                 "target_tau",
@@ -285,6 +311,22 @@ pub struct Svg1 {
     /// Demonstration pairs for `bc_weight`.
     #[serde(default)]
     demos: Option<(Array2<f64>, Array2<f64>)>,
+    /// The kept episodes of `sil_weight`, highest own return first.
+    #[serde(default)]
+    sil: Vec<SilEpisode>,
+}
+
+/// A training episode kept for the self-imitation term.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct SilEpisode {
+    /// Sum of the learning rewards plus the terminal adjustment.
+    own_return: f64,
+    /// `(length, obs_dim)`.
+    states: Array2<f64>,
+    /// `(length, act_dim)`.
+    actions: Array2<f64>,
+    /// Discounted own return from each step on.
+    returns: Vec<f64>,
 }
 
 impl Svg1 {
@@ -324,6 +366,7 @@ impl Svg1 {
         let avg_policy = (config.policy_avg_tau > 0.0).then(|| policy.clone());
         Ok(Self {
             demos: None,
+            sil: Vec::new(),
             avg_policy,
             config: config.clone(),
             policy,
@@ -685,6 +728,19 @@ impl Svg1 {
         reward: &dyn DifferentiableReward,
         bc: Option<(&Array2<f64>, &Array2<f64>)>,
     ) -> Result<f64> {
+        self.update_policy_imitating(batch, inputs, reward, bc, None)
+    }
+
+    /// [`Svg1::update_policy_bc`] with an optional self-imitation batch
+    /// `(states, actions, mask)` weighted by `sil_weight`.
+    fn update_policy_imitating(
+        &mut self,
+        batch: &SvgBatch,
+        inputs: &PolicyInputs,
+        reward: &dyn DifferentiableReward,
+        bc: Option<(&Array2<f64>, &Array2<f64>)>,
+        sil: Option<&(Array2<f64>, Array2<f64>, Vec<f64>)>,
+    ) -> Result<f64> {
         let (obj, mut grads) = self.policy_objective(batch, inputs, reward)?;
         if !grads.is_finite() || !obj.is_finite() {
             return Err(Error::NonFinite {
@@ -701,6 +757,22 @@ impl Svg1 {
             let dist = self.policy.distribution_tape(x.view(), &mut tape)?;
             let n = ds.nrows() as f64;
             let d_mean = (&dist.mean - da).mapv(|v| 2.0 * self.config.bc_weight * v / n);
+            let d_ls = Array2::<f64>::zeros(d_mean.raw_dim());
+            self.policy
+                .backward_params(&tape, &dist, d_mean.view(), d_ls.view(), &mut grads);
+        }
+        if let Some((ss, sa, mask)) = sil
+            && self.config.sil_weight > 0.0
+        {
+            let x = self.policy.prepare_obs(ss.view())?;
+            let mut tape = Tape::new();
+            let dist = self.policy.distribution_tape(x.view(), &mut tape)?;
+            let n = ss.nrows() as f64;
+            let w = 2.0 * self.config.sil_weight / n;
+            let mut d_mean = &dist.mean - sa;
+            for (mut row, m) in d_mean.rows_mut().into_iter().zip(mask) {
+                row.mapv_inplace(|v| w * m * v);
+            }
             let d_ls = Array2::<f64>::zeros(d_mean.raw_dim());
             self.policy
                 .backward_params(&tape, &dist, d_mean.view(), d_ls.view(), &mut grads);
@@ -769,7 +841,14 @@ impl Svg1 {
                 }
                 (_, false) => None,
             };
-            let o = self.update_policy_bc(&b, &inputs, reward, bc.as_ref().map(|(s, a)| (s, a)))?;
+            let sil = self.sil_batch(bs, rng)?;
+            let o = self.update_policy_imitating(
+                &b,
+                &inputs,
+                reward,
+                bc.as_ref().map(|(s, a)| (s, a)),
+                sil.as_ref(),
+            )?;
             Some(o)
         } else {
             None
@@ -779,6 +858,84 @@ impl Svg1 {
             value_loss,
             policy_objective,
         })
+    }
+
+    /// Pairs drawn uniformly from the kept self-imitation episodes, with
+    /// their masks (1 where the discounted own return from the pair on
+    /// exceeds `V(s)`); `None` when the term is off or nothing is kept.
+    fn sil_batch<R: Rng + ?Sized>(
+        &self,
+        n: usize,
+        rng: &mut R,
+    ) -> Result<Option<(Array2<f64>, Array2<f64>, Vec<f64>)>> {
+        let total: usize = self.sil.iter().map(|e| e.returns.len()).sum();
+        if self.config.sil_weight <= 0.0 || total == 0 {
+            return Ok(None);
+        }
+        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
+        let mut states = Array2::<f64>::zeros((n, o));
+        let mut actions = Array2::<f64>::zeros((n, a));
+        let mut returns = Vec::with_capacity(n);
+        for i in 0..n {
+            let mut k = rng.random_range(0..total);
+            for e in &self.sil {
+                if k < e.returns.len() {
+                    states.row_mut(i).assign(&e.states.row(k));
+                    actions.row_mut(i).assign(&e.actions.row(k));
+                    returns.push(e.returns[k]);
+                    break;
+                }
+                k -= e.returns.len();
+            }
+        }
+        let x = self.policy.prepare_obs(states.view())?;
+        let v = self.value.predict(x.view());
+        let mask = returns
+            .iter()
+            .zip(v.column(0))
+            .map(|(g, v)| if *g > *v as f64 { 1.0 } else { 0.0 })
+            .collect();
+        Ok(Some((states, actions, mask)))
+    }
+
+    /// Offers a finished training episode to the self-imitation term:
+    /// kept when its own return is among the `sil_episodes` highest.
+    fn offer_sil(&mut self, outcome: &EpisodeOutcome, rewards: &[f64]) {
+        if self.config.sil_weight <= 0.0 || rewards.is_empty() {
+            return;
+        }
+        let own_return: f64 = rewards.iter().sum();
+        let k = self.config.sil_episodes;
+        if self.sil.len() >= k && self.sil.last().is_some_and(|e| e.own_return >= own_return) {
+            return;
+        }
+        let mut returns = vec![0.0; rewards.len()];
+        let mut g = 0.0;
+        for t in (0..rewards.len()).rev() {
+            g = rewards[t] + self.config.gamma * g;
+            returns[t] = g;
+        }
+        let at = self
+            .sil
+            .iter()
+            .position(|e| e.own_return < own_return)
+            .unwrap_or(self.sil.len());
+        self.sil.insert(
+            at,
+            SilEpisode {
+                own_return,
+                states: outcome.states.clone(),
+                actions: outcome.actions.clone(),
+                returns,
+            },
+        );
+        self.sil.truncate(k);
+    }
+
+    /// Own returns of the episodes kept for the self-imitation term,
+    /// highest first.
+    pub fn sil_returns(&self) -> Vec<f64> {
+        self.sil.iter().map(|e| e.own_return).collect()
     }
 
     fn check_finite(&self, what: &str, v: f64) -> Result<()> {
@@ -837,6 +994,7 @@ impl EpisodicLearner for Svg1 {
         let mut eps_prev: Option<Vec<f64>> = None;
         self.check_observation(&obs)?;
         let mut log = EpisodeLog::new(self.policy.obs_dim(), self.policy.act_dim());
+        let mut own_rewards = Vec::new();
         while (log.length() as u64) < max_steps {
             let (a, logp) = match (self.current_fixed_std(), self.config.noise_rho > 0.0) {
                 (Some(sd), true) => {
@@ -869,6 +1027,7 @@ impl EpisodicLearner for Svg1 {
             let r = EpisodeLog::reward_of(reward, &obs, &a, self.env_steps)?;
             self.push(&obs, &a, logp, r, &step.observation, step.terminated)?;
             log.record(&obs, &a, step.reward, r);
+            own_rewards.push(r);
             self.env_steps += 1;
             let start = self.config.learning_starts;
             if self.env_steps > start {
@@ -881,7 +1040,14 @@ impl EpisodicLearner for Svg1 {
                 let adj = terminal(r);
                 self.adjust_last_reward(adj);
                 log.end(adj, step.info);
-                break;
+                if let Some(last) = own_rewards.last_mut() {
+                    *last += adj;
+                }
+                let outcome = log.into_outcome(self.env_steps)?;
+                if outcome.finished {
+                    self.offer_sil(&outcome, &own_rewards);
+                }
+                return Ok(outcome);
             }
             obs = step.observation;
         }

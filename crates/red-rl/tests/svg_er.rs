@@ -293,6 +293,21 @@ fn config_validation_names_the_field() {
             },
             "target_tau",
         ),
+        (
+            SvgConfig {
+                sil_weight: -0.5,
+                ..SvgConfig::default()
+            },
+            "sil_weight",
+        ),
+        (
+            SvgConfig {
+                sil_weight: 1.0,
+                sil_episodes: 0,
+                ..SvgConfig::default()
+            },
+            "sil_episodes",
+        ),
     ] {
         let e = config.validate().unwrap_err().to_string();
         assert!(e.contains(field), "{e}");
@@ -657,4 +672,45 @@ fn the_bc_term_needs_fitting_demonstration_pairs() {
         &mut |_| {},
     )
     .unwrap();
+}
+
+/// The self-imitation term keeps the episodes of highest own return (the
+/// learning reward plus the terminal adjustment), highest first, and
+/// changes training; with weight 0 it keeps nothing.
+#[test]
+fn self_imitation_keeps_the_best_own_returns() {
+    let train = |sil_weight: f64| {
+        let config = SvgConfig {
+            sil_weight,
+            sil_episodes: 3,
+            ..small_config()
+        };
+        let (mut svg, mut rng) = fresh(4, &config);
+        let mut env = Reach::default();
+        let mut own = Vec::new();
+        // A terminal adjustment that depends on the last reward, so the kept
+        // returns must include it to match.
+        let terminal = |r: f64| if r < -0.3 { -1.0 } else { 0.0 };
+        svg.train(
+            &mut env,
+            &ReachReward,
+            400,
+            None,
+            &terminal,
+            &mut rng,
+            &mut |e| own.push(e.imitation_return),
+        )
+        .unwrap();
+        (svg, own)
+    };
+    let (svg, own) = train(2.0);
+    let mut best = own.clone();
+    best.sort_by(|a, b| b.total_cmp(a));
+    best.truncate(3);
+    assert_eq!(own.len(), 400 / HORIZON);
+    assert_eq!(svg.sil_returns(), best);
+    let (off, own_off) = train(0.0);
+    assert!(off.sil_returns().is_empty());
+    assert_ne!(svg.policy(), off.policy(), "the term changed nothing");
+    assert_eq!(own[..5], own_off[..5], "episodes before the policy moves differ");
 }
