@@ -316,6 +316,10 @@ pub struct Svg1 {
     sil: Vec<SilEpisode>,
 }
 
+/// Pairs of the self-imitation term: states, actions and a 0/1 mask per
+/// row.
+type SilBatch = (Array2<f64>, Array2<f64>, Vec<f64>);
+
 /// A training episode kept for the self-imitation term.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 struct SilEpisode {
@@ -739,7 +743,7 @@ impl Svg1 {
         inputs: &PolicyInputs,
         reward: &dyn DifferentiableReward,
         bc: Option<(&Array2<f64>, &Array2<f64>)>,
-        sil: Option<&(Array2<f64>, Array2<f64>, Vec<f64>)>,
+        sil: Option<&SilBatch>,
     ) -> Result<f64> {
         let (obj, mut grads) = self.policy_objective(batch, inputs, reward)?;
         if !grads.is_finite() || !obj.is_finite() {
@@ -863,11 +867,7 @@ impl Svg1 {
     /// Pairs drawn uniformly from the kept self-imitation episodes, with
     /// their masks (1 where the discounted own return from the pair on
     /// exceeds `V(s)`); `None` when the term is off or nothing is kept.
-    fn sil_batch<R: Rng + ?Sized>(
-        &self,
-        n: usize,
-        rng: &mut R,
-    ) -> Result<Option<(Array2<f64>, Array2<f64>, Vec<f64>)>> {
+    fn sil_batch<R: Rng + ?Sized>(&self, n: usize, rng: &mut R) -> Result<Option<SilBatch>> {
         let total: usize = self.sil.iter().map(|e| e.returns.len()).sum();
         if self.config.sil_weight <= 0.0 || total == 0 {
             return Ok(None);

@@ -712,5 +712,9 @@ fn self_imitation_keeps_the_best_own_returns() {
     let (off, own_off) = train(0.0);
     assert!(off.sil_returns().is_empty());
     assert_ne!(svg.policy(), off.policy(), "the term changed nothing");
-    assert_eq!(own[..5], own_off[..5], "episodes before the policy moves differ");
+    assert_eq!(
+        own[..5],
+        own_off[..5],
+        "episodes before the policy moves differ"
+    );
 }
