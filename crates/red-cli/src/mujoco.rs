@@ -15,7 +15,7 @@ use clap::{Args, Subcommand};
 use indicatif::MultiProgress;
 use red_experiments::Progress;
 use red_experiments::mujoco::check::check_envs;
-use red_experiments::mujoco::run::{self, Outcome, PolicyEval, RunFlags};
+use red_experiments::mujoco::run::{self, MujocoLearner, Outcome, PolicyEval, RunFlags};
 use red_experiments::mujoco::slurm::{self, SlurmConfig};
 use red_experiments::mujoco::table::{self, GridProgress, TableConfig};
 use red_experiments::mujoco::{Method, short_name};
@@ -59,8 +59,8 @@ enum MujocoCommand {
 /// Options shared by `expert` and `train`.
 #[derive(Debug, Args)]
 struct CommonRunArgs {
-    /// Environment steps of TRPO (default: 5,000,000 for `expert`,
-    /// 2,000,000 for `train`).
+    /// Environment steps (default: 5,000,000 for `expert` with TRPO,
+    /// 1,000,000 with SAC, 2,000,000 for `train`).
     #[arg(long)]
     pub steps: Option<u64>,
     /// Seed of every random stream of the run.
@@ -109,6 +109,11 @@ struct ExpertArgs {
     /// The task, e.g. `hopper` or `Hopper-v5` (not needed with `--resume`).
     #[arg(long, required_unless_present = "resume")]
     env: Option<EnvId>,
+    /// The learner: trpo (the paper's, 5,000,000 steps by default) or sac
+    /// (Soft Actor-Critic, 1,000,000 steps by default; checkpoints every
+    /// 100,000 steps hold its whole replay).
+    #[arg(long, conflicts_with = "resume", value_parser = |s: &str| s.parse::<MujocoLearner>())]
+    learner: Option<MujocoLearner>,
     #[command(flatten)]
     common: CommonRunArgs,
 }
@@ -318,11 +323,11 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
         MujocoCommand::Expert(a) => {
             // Without --env (--resume), the run's config.json decides.
             let env = a.env.unwrap_or(EnvId::Hopper);
-            start_run(env, Method::Expert, None, a.common)
+            start_run(env, Method::Expert, None, a.learner, a.common)
         }
         MujocoCommand::Train(a) => {
             if a.common.resume.is_some() {
-                return start_run(EnvId::Hopper, Method::Red, None, a.common);
+                return start_run(EnvId::Hopper, Method::Red, None, None, a.common);
             }
             let env = a.env.context("--env is required (or --resume RUN_DIR)")?;
             let method: Method = a
@@ -332,7 +337,7 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
                 method != Method::Expert,
                 "use `red-cli mujoco expert` to train an expert"
             );
-            start_run(env, method, a.demo, a.common)
+            start_run(env, method, a.demo, None, a.common)
         }
         MujocoCommand::Eval(a) => eval(a),
         MujocoCommand::Demos(a) => {
@@ -350,7 +355,11 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
 
 impl CommonRunArgs {
     /// The library's flags of the run (reads the `--config` file).
-    fn flags(self, demo: Option<PathBuf>) -> anyhow::Result<RunFlags> {
+    fn flags(
+        self,
+        demo: Option<PathBuf>,
+        learner: Option<MujocoLearner>,
+    ) -> anyhow::Result<RunFlags> {
         let text = crate::read_text(self.config.as_deref())?;
         Ok(RunFlags {
             steps: self.steps,
@@ -365,6 +374,7 @@ impl CommonRunArgs {
             sigma1: self.sigma1,
             release_sigma1: self.release_sigma1,
             demo,
+            learner,
         })
     }
 }
@@ -373,14 +383,21 @@ fn start_run(
     env: EnvId,
     method: Method,
     demo: Option<PathBuf>,
+    learner: Option<MujocoLearner>,
     common: CommonRunArgs,
 ) -> anyhow::Result<()> {
     interrupt::install();
     let stop_after = common.stop_after_iterations;
-    let (dir, cfg, start) = common.flags(demo)?.prepare(env, method)?;
+    let (dir, cfg, start) = common.flags(demo, learner)?.prepare(env, method)?;
     let label = format!("{} {}", short_name(cfg.env), cfg.method.name());
     let mut bar = Bar::labelled(label, None);
-    bar.stop_at = stop_after.map(|k| k * cfg.trpo.steps_per_batch as u64);
+    // A TRPO iteration is a batch; SAC has none, so its tests count in
+    // thousands of steps.
+    let per = match cfg.learner {
+        MujocoLearner::Trpo => cfg.trpo.steps_per_batch as u64,
+        MujocoLearner::Sac => 1_000,
+    };
+    bar.stop_at = stop_after.map(|k| k * per);
     let outcome = run::run_with(&dir, Some(cfg), start, interrupt::flag(), &mut bar)?;
     drop(bar);
     if outcome == Outcome::Interrupted {

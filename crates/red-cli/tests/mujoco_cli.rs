@@ -258,3 +258,93 @@ fn refusals_name_the_problem() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && e.contains("Hopper-v5"), "{e}");
 }
+
+/// A SAC expert on Reacher with tiny networks: its demo file, a run stopped
+/// (as on Ctrl-C) that resumes to the numbers of an uninterrupted one, and
+/// SAC refused for an imitation method.
+#[test]
+fn sac_expert_interrupts_resumes_and_writes_demos() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path();
+    let cfg = out.join("sac.json");
+    std::fs::write(
+        &cfg,
+        r#"{"sac": {"learner": {"hidden": [16, 16], "batch_size": 32, "random_steps": 300,
+            "learning_starts": 300}, "policy": {"hidden": [16, 16]}, "checkpoint_steps": 500}}"#,
+    )
+    .unwrap();
+    let cfg = cfg.display().to_string();
+    let common = [
+        "expert",
+        "--env",
+        "reacher",
+        "--learner",
+        "sac",
+        "--steps",
+        "1500",
+        "--seed",
+        "2",
+        "--config",
+        &cfg,
+        "--eval-episodes",
+        "2",
+    ];
+    let mut a = common.to_vec();
+    a.extend(["--name", "full"]);
+    let s = ok(&cli(&a, out));
+    assert!(s.contains("demonstrations written"), "{s}");
+    let conf: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("full/config.json")).unwrap())
+            .unwrap();
+    assert_eq!(conf["learner"], "sac");
+    let demo: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("full/demos.json")).unwrap())
+            .unwrap();
+    assert_eq!(demo["trajectories"].as_array().unwrap().len(), 4);
+    // 1500 steps of 50-step episodes: a metrics row per episode.
+    assert_eq!(metrics_without_time(&out.join("full")).len(), 1 + 30);
+
+    let mut b = common.to_vec();
+    b.extend(["--name", "split", "--stop-after-iterations", "1"]);
+    let s = ok(&cli(&b, out));
+    assert!(s.contains("interrupted"), "{s}");
+    assert!(!out.join("split/eval.json").exists());
+    let split = out.join("split").display().to_string();
+    ok(&cli(&["expert", "--resume", &split], out));
+    assert_eq!(
+        eval_returns(&out.join("full")),
+        eval_returns(&out.join("split"))
+    );
+    assert_eq!(
+        metrics_without_time(&out.join("full")),
+        metrics_without_time(&out.join("split"))
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("full/demos.json")).unwrap(),
+        std::fs::read_to_string(out.join("split/demos.json")).unwrap()
+    );
+
+    // SAC is for experts only.
+    let demo_path = out.join("full/demos.json").display().to_string();
+    let sac_red = out.join("sac-red.json");
+    std::fs::write(&sac_red, r#"{"learner": "sac"}"#).unwrap();
+    let o = cli(
+        &[
+            "train",
+            "--env",
+            "reacher",
+            "--method",
+            "red",
+            "--demo",
+            &demo_path,
+            "--config",
+            &sac_red.display().to_string(),
+        ],
+        out,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("SAC trains experts only"),
+        "{err}"
+    );
+}

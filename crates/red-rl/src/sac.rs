@@ -88,6 +88,13 @@ pub struct SacConfig {
     pub reward_scale: f64,
     /// Gradient-norm clip of each network. `None` (the paper clips none).
     pub max_grad_norm: Option<f32>,
+    /// Environment steps at the start of training whose actions are drawn
+    /// uniformly from `(-1, 1)^dim(A)` instead of from the actor (the
+    /// authors' softlearning code and stable-baselines3 fill the replay this
+    /// way before learning; 10,000 steps on MuJoCo in both). Ours: default 0,
+    /// no such steps and no random numbers drawn for them.
+    #[serde(default)]
+    pub random_steps: u64,
 }
 
 impl Default for SacConfig {
@@ -109,6 +116,7 @@ impl Default for SacConfig {
             target_entropy: None,
             reward_scale: 1.0,
             max_grad_norm: None,
+            random_steps: 0,
         }
     }
 }
@@ -598,8 +606,20 @@ impl Sac {
         reward: &dyn DifferentiableReward,
         rng: &mut R,
     ) -> Result<SacStats> {
+        self.update_with(Some(reward), rng)
+    }
+
+    /// [`Sac::update`] on the stored rewards as they are (`None`: the
+    /// environment's, nothing recomputed).
+    fn update_with<R: Rng + ?Sized>(
+        &mut self,
+        reward: Option<&dyn DifferentiableReward>,
+        rng: &mut R,
+    ) -> Result<SacStats> {
         let mut b = self.sample(self.config.batch_size, rng)?;
-        if reward.is_adaptive() {
+        if let Some(reward) = reward
+            && reward.is_adaptive()
+        {
             let (r, _) = reward.reward_and_grad(b.states.view(), b.actions.view())?;
             b.set_rewards(&r.to_vec())?;
         }
@@ -617,6 +637,81 @@ impl Sac {
             entropy,
             alpha: self.alpha(),
         })
+    }
+
+    /// Runs one episode on the environment's own reward (training an
+    /// expert): the transitions store `step.reward`, no terminal
+    /// adjustment; otherwise as [`EpisodicLearner::run_episode`] (actions of
+    /// the stochastic actor, or uniform ones during the first
+    /// `random_steps`; updates after `learning_starts`).
+    ///
+    /// # Errors
+    /// As [`EpisodicLearner::run_episode`].
+    pub fn run_env_episode<E: Env + ?Sized, R: Rng + ?Sized>(
+        &mut self,
+        env: &mut E,
+        reset_seed: Option<u64>,
+        max_steps: u64,
+        rng: &mut R,
+    ) -> Result<EpisodeOutcome> {
+        self.episode(env, None, reset_seed, &|_| 0.0, max_steps, rng)
+    }
+
+    /// One episode; `reward` `None` stores the environment's reward.
+    fn episode<E: Env + ?Sized, R: Rng + ?Sized>(
+        &mut self,
+        env: &mut E,
+        reward: Option<&dyn DifferentiableReward>,
+        reset_seed: Option<u64>,
+        terminal: &dyn Fn(f64) -> f64,
+        max_steps: u64,
+        rng: &mut R,
+    ) -> Result<EpisodeOutcome> {
+        self.check_spaces(env)?;
+        let seed = reset_seed.unwrap_or_else(|| rng.random());
+        let (mut obs, _) = env.reset(Some(seed))?;
+        self.check_observation(&obs)?;
+        let mut log = EpisodeLog::new(self.policy.obs_dim(), self.policy.act_dim());
+        let mut ws = PolicyWorkspace::default();
+        let mut a = vec![0.0; self.policy.act_dim()];
+        while (log.length() as u64) < max_steps {
+            if self.env_steps < self.config.random_steps {
+                for v in a.iter_mut() {
+                    *v = rng.random_range(-1.0..1.0);
+                }
+            } else {
+                self.policy
+                    .act_into(&obs, Some(&mut *rng), &mut ws, &mut a)?;
+            }
+            let step = env.step(&a)?;
+            self.check_observation(&step.observation)?;
+            let r = match reward {
+                Some(m) => EpisodeLog::reward_of(m, &obs, &a, self.env_steps)?,
+                None if step.reward.is_finite() => step.reward,
+                None => {
+                    return Err(Error::NonFinite {
+                        what: "environment reward".into(),
+                        step: self.env_steps,
+                    });
+                }
+            };
+            self.push(&obs, &a, r, &step.observation, step.terminated)?;
+            log.record(&obs, &a, step.reward, r);
+            self.env_steps += 1;
+            if self.env_steps > self.config.learning_starts {
+                for _ in 0..self.config.updates_per_step {
+                    self.update_with(reward, rng)?;
+                }
+            }
+            if step.terminated || step.truncated {
+                let adj = terminal(r);
+                self.adjust_last_reward(adj);
+                log.end(adj, step.info);
+                break;
+            }
+            obs = step.observation;
+        }
+        log.into_outcome(self.env_steps)
     }
 
     fn check_observation(&self, obs: &[f64]) -> Result<()> {
@@ -655,36 +750,7 @@ impl EpisodicLearner for Sac {
         max_steps: u64,
         rng: &mut R,
     ) -> Result<EpisodeOutcome> {
-        self.check_spaces(env)?;
-        let seed = reset_seed.unwrap_or_else(|| rng.random());
-        let (mut obs, _) = env.reset(Some(seed))?;
-        self.check_observation(&obs)?;
-        let mut log = EpisodeLog::new(self.policy.obs_dim(), self.policy.act_dim());
-        let mut ws = PolicyWorkspace::default();
-        let mut a = vec![0.0; self.policy.act_dim()];
-        while (log.length() as u64) < max_steps {
-            self.policy
-                .act_into(&obs, Some(&mut *rng), &mut ws, &mut a)?;
-            let step = env.step(&a)?;
-            self.check_observation(&step.observation)?;
-            let r = EpisodeLog::reward_of(reward, &obs, &a, self.env_steps)?;
-            self.push(&obs, &a, r, &step.observation, step.terminated)?;
-            log.record(&obs, &a, step.reward, r);
-            self.env_steps += 1;
-            if self.env_steps > self.config.learning_starts {
-                for _ in 0..self.config.updates_per_step {
-                    self.update(reward, rng)?;
-                }
-            }
-            if step.terminated || step.truncated {
-                let adj = terminal(r);
-                self.adjust_last_reward(adj);
-                log.end(adj, step.info);
-                break;
-            }
-            obs = step.observation;
-        }
-        log.into_outcome(self.env_steps)
+        self.episode(env, Some(reward), reset_seed, terminal, max_steps, rng)
     }
 }
 

@@ -252,3 +252,66 @@ fn checkpoint_resumes_with_the_same_numbers() {
     assert_eq!(sac.env_steps(), 500);
     assert_eq!(resumed.replay_len(), 500);
 }
+
+/// `steps` environment steps of [`Sac::run_env_episode`] on `Reach`'s own
+/// reward; each episode's (true return, actions).
+fn train_on_env_reward(sac: &mut Sac, rng: &mut ChaCha8Rng, steps: u64) -> Vec<(f64, Array2<f64>)> {
+    let mut env = Reach::new();
+    let mut episodes = Vec::new();
+    while sac.env_steps() < steps {
+        let left = steps - sac.env_steps();
+        let ep = sac.run_env_episode(&mut env, None, left, rng).unwrap();
+        episodes.push((ep.report.true_return, ep.actions));
+    }
+    episodes
+}
+
+#[test]
+fn sac_learns_on_the_environments_own_reward() {
+    let (mut sac, mut rng) = learner(0);
+    let before = final_distance(sac.policy());
+    train_on_env_reward(&mut sac, &mut rng, 6_000);
+    let after = final_distance(sac.policy());
+    eprintln!("env reward: final distance {after:.3} (untrained {before:.3})");
+    assert!(
+        after < 0.1 && after < 0.3 * before,
+        "final distance {after:.3} (untrained {before:.3})"
+    );
+}
+
+#[test]
+fn environment_reward_is_what_is_stored_and_random_steps_act_uniformly() {
+    let (sac, _) = learner(3);
+    let cfg = SacConfig {
+        random_steps: 2 * HORIZON as u64,
+        learning_starts: 1_000,
+        ..sac.config().clone()
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let pc = GaussianPolicyConfig {
+        hidden: vec![32, 32],
+        squash: true,
+        // An actor whose own actions stay near 0, so uniform draws stand out.
+        init_log_std: -4.0,
+        ..GaussianPolicyConfig::default()
+    };
+    let policy = GaussianPolicy::new(&pc, 2, 2, None, &mut rng).unwrap();
+    let mut sac = Sac::new(&cfg, policy, &mut rng).unwrap();
+    let episodes = train_on_env_reward(&mut sac, &mut rng, 4 * HORIZON as u64);
+    assert_eq!(episodes.len(), 4);
+    let widest = |a: &Array2<f64>| a.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    for (k, (_, actions)) in episodes.iter().enumerate() {
+        assert!(actions.iter().all(|v| v.abs() < 1.0));
+        if k < 2 {
+            assert!(widest(actions) > 0.5, "episode {k}: uniform actions");
+        } else {
+            assert!(widest(actions) < 0.1, "episode {k}: the actor's own");
+        }
+    }
+    // Stored rewards are the environment's: minus the next state's distance.
+    let b = sac.sample(500, &mut rng).unwrap();
+    for i in 0..b.states.nrows() {
+        let next = [b.next_states[[i, 0]], b.next_states[[i, 1]]];
+        assert!((b.rewards[i] + distance(&next)).abs() < 1e-12);
+    }
+}

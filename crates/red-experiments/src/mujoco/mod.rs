@@ -1,6 +1,6 @@
 //! The MuJoCo experiments (paper Sec. 5.2) on Gymnasium's `-v5` Hopper,
 //! HalfCheetah, Walker2d, Ant and Reacher: one TRPO or behaviour-cloning
-//! run with its folder, checkpoints, best checkpoint and evaluation
+//! run (or a SAC expert, `sac_run`) with its folder, checkpoints, best checkpoint and evaluation
 //! ([`run`]), and the grid of Table 1 with its table and learning curves
 //! ([`table`]).
 //!
@@ -34,6 +34,7 @@ use red_mujoco::EnvId;
 pub mod check;
 pub mod demos;
 pub mod run;
+mod sac_run;
 pub mod slurm;
 pub mod table;
 

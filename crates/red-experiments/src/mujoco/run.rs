@@ -38,8 +38,9 @@ use red_rl::bc::{BcConfig, behavior_clone};
 use red_rl::gail::GailConfig;
 use red_rl::gmmil::GmmilConfig;
 use red_rl::normalize::{DEFAULT_CLIP, DEFAULT_MIN_STD, ObsNormalizer};
-use red_rl::policy::GaussianPolicy;
+use red_rl::policy::{GaussianPolicy, GaussianPolicyConfig};
 use red_rl::rollout::{EvalReport, evaluate, evaluate_sampled};
+use red_rl::sac::SacConfig;
 use red_rl::trpo::{IterationMetrics, TrpoConfig, TrpoHooks, TrpoTrainer};
 use red_support::{AutoencoderConfig, ExpertScores, RedRewardConfig, RndConfig, Sigma1};
 use serde::{Deserialize, Serialize};
@@ -181,7 +182,81 @@ pub struct RunConfig {
     /// Trajectories written to the demo file of an `expert` run. Default 4
     /// (the paper).
     pub demo_trajectories: usize,
+    /// Which learner trains the policy. Default `trpo` (the paper's); `sac`
+    /// (Soft Actor-Critic) trains `expert` runs only. A `config.json`
+    /// without the field (written before session 29) reads as `trpo`.
+    #[serde(default)]
+    pub learner: MujocoLearner,
+    /// SAC's settings, used when `learner` is `sac`.
+    #[serde(default)]
+    pub sac: SacRunConfig,
 }
+
+/// The learner of a MuJoCo run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MujocoLearner {
+    /// TRPO (Schulman et al. 2015), the paper's.
+    #[default]
+    Trpo,
+    /// Soft Actor-Critic (Haarnoja et al. 2018), for experts.
+    Sac,
+}
+
+impl std::str::FromStr for MujocoLearner {
+    type Err = String;
+
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "trpo" => Ok(Self::Trpo),
+            "sac" => Ok(Self::Sac),
+            _ => Err(format!("unknown learner `{s}` (trpo or sac)")),
+        }
+    }
+}
+
+/// SAC's settings for a MuJoCo expert: the library's (Haarnoja et al.
+/// 2018b, Table 1: two hidden layers of 256, Adam 3e-4, batch 256, replay
+/// 1e6, tau 0.005, gamma 0.99, automatic temperature with target entropy
+/// `-dim(A)`), with 10,000 uniform-action steps before the first update
+/// (`random_steps` and `learning_starts`: the authors' softlearning code and
+/// stable-baselines3's MuJoCo settings start this way).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SacRunConfig {
+    /// The learner's settings.
+    pub learner: SacConfig,
+    /// The actor: a tanh-squashed Gaussian with a state-dependent log-std
+    /// (`squash` is forced on). Default two hidden layers of 256, ReLU.
+    pub policy: GaussianPolicyConfig,
+    /// Environment steps between checkpoints. Default 100,000. A checkpoint
+    /// holds the whole replay (about 0.9 KB per HalfCheetah step as JSON).
+    pub checkpoint_steps: u64,
+}
+
+impl Default for SacRunConfig {
+    fn default() -> Self {
+        Self {
+            learner: SacConfig {
+                random_steps: 10_000,
+                learning_starts: 10_000,
+                ..SacConfig::default()
+            },
+            policy: GaussianPolicyConfig {
+                hidden: vec![256, 256],
+                activation: red_nets::Activation::Relu,
+                squash: true,
+                ..GaussianPolicyConfig::default()
+            },
+            checkpoint_steps: 100_000,
+        }
+    }
+}
+
+/// Environment steps of an `expert` run trained with SAC unless set
+/// (`RunFlags::learner`): 1,000,000, where SAC's published MuJoCo curves
+/// are reported (Haarnoja et al. 2018b, Fig. 1).
+pub const SAC_EXPERT_STEPS: u64 = 1_000_000;
 
 impl Default for RunConfig {
     fn default() -> Self {
@@ -254,6 +329,8 @@ impl RunConfig {
             eval_episodes: 50,
             best_window: 40,
             demo_trajectories: 4,
+            learner: MujocoLearner::Trpo,
+            sac: SacRunConfig::default(),
         }
     }
 
@@ -319,6 +396,26 @@ impl RunConfig {
             .validate()
             .map_err(|e| e.to_string()),
         )?;
+        if self.learner == MujocoLearner::Sac {
+            if self.method != Method::Expert {
+                return Err(Error::InvalidConfig {
+                    field: "learner".into(),
+                    reason: format!(
+                        "SAC trains experts only (method `expert`); `{}` trains with TRPO: set learner to trpo",
+                        self.method.name()
+                    ),
+                });
+            }
+            field(
+                "sac.learner",
+                self.sac.learner.validate().map_err(|e| e.to_string()),
+            )?;
+            field(
+                "sac.policy",
+                self.sac.policy.validate().map_err(|e| e.to_string()),
+            )?;
+            positive("sac.checkpoint_steps", self.sac.checkpoint_steps)?;
+        }
         if self.method.needs_demo() && self.demo.is_none() {
             return Err(Error::InvalidConfig {
                 field: "demo".into(),
@@ -368,10 +465,11 @@ impl RunConfig {
 /// The best mean true return of the last `best_window` training episodes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct BestRecord {
-    mean_true_return: f64,
-    env_steps: u64,
-    iteration: u64,
+pub(super) struct BestRecord {
+    pub(super) mean_true_return: f64,
+    pub(super) env_steps: u64,
+    /// TRPO's iteration; with SAC, the training episode's number.
+    pub(super) iteration: u64,
 }
 
 /// Everything a run needs to continue exactly where it stopped.
@@ -581,7 +679,7 @@ fn fmt_opt(v: Option<f64>) -> String {
 /// `x` as the shortest text that reads back to it: plain decimals as
 /// before, but with an exponent below 1e-5 and from 1e16 in size (a mean
 /// reward of 1e-300 would otherwise take 300 digits).
-fn num(x: f64) -> String {
+pub(super) fn num(x: f64) -> String {
     if x != 0.0 && x.is_finite() && !(1e-5..1e16).contains(&x.abs()) {
         format!("{x:e}")
     } else {
@@ -631,7 +729,7 @@ fn truncate_metrics(path: &Path, iteration: u64) -> Result<String> {
     Ok(kept)
 }
 
-fn save_policy(path: &Path, policy: &GaussianPolicy) -> Result<()> {
+pub(super) fn save_policy(path: &Path, policy: &GaussianPolicy) -> Result<()> {
     write_atomic(path, policy.to_json()?.as_bytes())?;
     Ok(())
 }
@@ -719,7 +817,7 @@ fn reward_pairs(
 }
 
 /// The task's action box (every MuJoCo task has one).
-fn action_box(env: &impl Env) -> Result<BoxSpace> {
+pub(super) fn action_box(env: &impl Env) -> Result<BoxSpace> {
     match env.action_space() {
         Space::Box(b) => Ok(b.clone()),
         Space::Discrete(n) => Err(Error::InvalidConfig {
@@ -921,6 +1019,9 @@ pub struct RunFlags {
     pub release_sigma1: bool,
     /// Demonstration file (default: [`super::default_demo`] in `out_dir`).
     pub demo: Option<PathBuf>,
+    /// The learner (default: the config file's, else TRPO). SAC also sets
+    /// the default budget to [`SAC_EXPERT_STEPS`].
+    pub learner: Option<MujocoLearner>,
 }
 
 impl RunFlags {
@@ -931,9 +1032,16 @@ impl RunFlags {
     /// A `config` file that cannot be used, or invalid settings.
     pub fn config(&self, env: EnvId, method: Method) -> Result<RunConfig> {
         let mut cfg = RunConfig::for_task(env, method);
+        if self.learner == Some(MujocoLearner::Sac) {
+            cfg.learner = MujocoLearner::Sac;
+            cfg.steps = SAC_EXPERT_STEPS;
+        }
         if let Some((path, text)) = &self.config {
             // Fields missing from the file keep the task's defaults.
             cfg = cfg.with_overrides(text, path)?;
+        }
+        if let Some(l) = self.learner {
+            cfg.learner = l;
         }
         cfg.seed = self.seed;
         cfg.steps = self.steps.unwrap_or(cfg.steps);
@@ -990,7 +1098,7 @@ pub fn run(
 
 /// The settings a checkpoint must have been made with: all but the step
 /// budget, which a resume may change.
-fn checkpoint_settings(cfg: &RunConfig) -> RunConfig {
+pub(super) fn checkpoint_settings(cfg: &RunConfig) -> RunConfig {
     RunConfig {
         steps: 0,
         ..cfg.clone()
@@ -1054,6 +1162,9 @@ pub fn run_with(
             saved.steps = c.steps;
             rd.write_json("config.json", &saved)?;
         }
+        if saved.learner == MujocoLearner::Sac {
+            return super::sac_run::run(rd, saved, true, stop, progress);
+        }
         let state = if rd.file("checkpoint.json").is_file() {
             let path = rd.file("checkpoint.json");
             let s: RunState =
@@ -1081,6 +1192,9 @@ pub fn run_with(
         let existing = crate::run_dir::Existing::from_force(start == Start::Force);
         let rd = RunDir::new_at(dir, existing)?;
         rd.write_json("config.json", &cfg)?;
+        if cfg.learner == MujocoLearner::Sac {
+            return super::sac_run::run(rd, cfg, false, stop, progress);
+        }
         (rd, cfg, None)
     };
     for n in rd.notes() {
@@ -1181,12 +1295,53 @@ pub fn run_with(
         RunReward::Clipped(c) => c.into_inner(),
     });
 
+    let done = Trained {
+        policy: trainer.policy().clone(),
+        env_steps: trainer.env_steps(),
+        best,
+        reward,
+        mujoco_warnings,
+        wall_before,
+    };
+    finish_run(&rd, &cfg, demos.as_ref(), &act_box, done, session, progress)
+}
+
+/// What training hands to [`finish_run`].
+pub(super) struct Trained {
+    pub(super) policy: GaussianPolicy,
+    pub(super) env_steps: u64,
+    pub(super) best: Option<BestRecord>,
+    pub(super) reward: Option<ImitationReward>,
+    pub(super) mujoco_warnings: [u64; MJ_N_WARNING],
+    /// Wall time of earlier sessions.
+    pub(super) wall_before: f64,
+}
+
+/// The end of a trained run: saves the final policy, evaluates it and the
+/// best checkpoint, records an expert's demonstrations, writes `eval.json`.
+pub(super) fn finish_run(
+    rd: &RunDir,
+    cfg: &RunConfig,
+    demos: Option<&Demos>,
+    act_box: &BoxSpace,
+    done: Trained,
+    session: Instant,
+    progress: &mut dyn Progress,
+) -> Result<Outcome> {
+    let Trained {
+        policy,
+        env_steps: steps_done,
+        best,
+        reward,
+        mujoco_warnings,
+        wall_before,
+    } = done;
+    let dir = rd.path();
     // Final policy and evaluations.
-    let policy = trainer.policy().clone();
     save_policy(&rd.file("policy.json"), &policy)?;
     let eval_seed = Seeder::new(cfg.seed).derive(Stream::Eval);
     let mut eval_env = WatchedEnv::new(cfg.env)?;
-    progress.advance(trainer.env_steps().min(cfg.steps), "evaluating");
+    progress.advance(steps_done.min(cfg.steps), "evaluating");
     let final_report = evaluate(
         &mut eval_env,
         &policy,
@@ -1194,7 +1349,6 @@ pub fn run_with(
         None,
         &mut ChaCha8Rng::seed_from_u64(eval_seed),
     )?;
-    let steps_done = trainer.env_steps();
     let final_eval = EvalSummary::new("final", steps_done, &final_report);
     let (best_eval, best_policy) = match &best {
         Some(b) if rd.file("best_policy.json").is_file() => {
@@ -1217,9 +1371,9 @@ pub fn run_with(
         }
         _ => (None, None),
     };
-    let demo_mean_imitation_reward = match (&reward, &demos) {
+    let demo_mean_imitation_reward = match (&reward, demos) {
         (Some(ImitationReward::Support(r)), Some(d)) => {
-            let (es, ea) = reward_pairs(&cfg, d, &act_box)?;
+            let (es, ea) = reward_pairs(cfg, d, act_box)?;
             Some(r.rewards(es.view(), ea.view())?.mean().unwrap_or(f64::NAN))
         }
         _ => None,
@@ -1232,7 +1386,6 @@ pub fn run_with(
         final_policy: final_eval,
         best_checkpoint: best_eval,
         demo_mean_return: demos
-            .as_ref()
             .and_then(|d| d.returns())
             .map(|r| r.iter().sum::<f64>() / r.len().max(1) as f64),
         demo_mean_imitation_reward,
