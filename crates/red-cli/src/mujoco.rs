@@ -18,7 +18,7 @@ use red_experiments::mujoco::check::check_envs;
 use red_experiments::mujoco::run::{self, MujocoLearner, Outcome, PolicyEval, RunFlags};
 use red_experiments::mujoco::slurm::{self, SlurmConfig};
 use red_experiments::mujoco::table::{self, GridProgress, TableConfig};
-use red_experiments::mujoco::{Method, short_name};
+use red_experiments::mujoco::{Method, launch, short_name};
 use red_mujoco::EnvId;
 
 use crate::interrupt;
@@ -102,6 +102,11 @@ struct CommonRunArgs {
     /// Stop as Ctrl-C does once this many iterations are done (for tests).
     #[arg(long, hide = true)]
     pub stop_after_iterations: Option<u64>,
+    /// The learner: trpo (the paper's, 5,000,000 steps by default) or sac
+    /// (Soft Actor-Critic, experts only, 1,000,000 steps by default;
+    /// checkpoints every 100,000 steps hold its whole replay).
+    #[arg(long, conflicts_with = "resume", value_parser = |s: &str| s.parse::<MujocoLearner>())]
+    pub learner: Option<MujocoLearner>,
 }
 
 #[derive(Debug, Args)]
@@ -109,11 +114,6 @@ struct ExpertArgs {
     /// The task, e.g. `hopper` or `Hopper-v5` (not needed with `--resume`).
     #[arg(long, required_unless_present = "resume")]
     env: Option<EnvId>,
-    /// The learner: trpo (the paper's, 5,000,000 steps by default) or sac
-    /// (Soft Actor-Critic, 1,000,000 steps by default; checkpoints every
-    /// 100,000 steps hold its whole replay).
-    #[arg(long, conflicts_with = "resume", value_parser = |s: &str| s.parse::<MujocoLearner>())]
-    learner: Option<MujocoLearner>,
     #[command(flatten)]
     common: CommonRunArgs,
 }
@@ -323,11 +323,11 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
         MujocoCommand::Expert(a) => {
             // Without --env (--resume), the run's config.json decides.
             let env = a.env.unwrap_or(EnvId::Hopper);
-            start_run(env, Method::Expert, None, a.learner, a.common)
+            start_run(env, Method::Expert, None, a.common)
         }
         MujocoCommand::Train(a) => {
             if a.common.resume.is_some() {
-                return start_run(EnvId::Hopper, Method::Red, None, None, a.common);
+                return start_run(EnvId::Hopper, Method::Red, None, a.common);
             }
             let env = a.env.context("--env is required (or --resume RUN_DIR)")?;
             let method: Method = a
@@ -337,7 +337,7 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
                 method != Method::Expert,
                 "use `red-cli mujoco expert` to train an expert"
             );
-            start_run(env, method, a.demo, None, a.common)
+            start_run(env, method, a.demo, a.common)
         }
         MujocoCommand::Eval(a) => eval(a),
         MujocoCommand::Demos(a) => {
@@ -355,11 +355,7 @@ pub fn run(args: MujocoArgs) -> anyhow::Result<()> {
 
 impl CommonRunArgs {
     /// The library's flags of the run (reads the `--config` file).
-    fn flags(
-        self,
-        demo: Option<PathBuf>,
-        learner: Option<MujocoLearner>,
-    ) -> anyhow::Result<RunFlags> {
+    fn flags(self, demo: Option<PathBuf>) -> anyhow::Result<RunFlags> {
         let text = crate::read_text(self.config.as_deref())?;
         Ok(RunFlags {
             steps: self.steps,
@@ -374,7 +370,7 @@ impl CommonRunArgs {
             sigma1: self.sigma1,
             release_sigma1: self.release_sigma1,
             demo,
-            learner,
+            learner: self.learner,
         })
     }
 }
@@ -383,22 +379,15 @@ fn start_run(
     env: EnvId,
     method: Method,
     demo: Option<PathBuf>,
-    learner: Option<MujocoLearner>,
     common: CommonRunArgs,
 ) -> anyhow::Result<()> {
     interrupt::install();
     let stop_after = common.stop_after_iterations;
-    let (dir, cfg, start) = common.flags(demo, learner)?.prepare(env, method)?;
+    let (dir, cfg, start) = common.flags(demo)?.prepare(env, method)?;
     let label = format!("{} {}", short_name(cfg.env), cfg.method.name());
     let mut bar = Bar::labelled(label, None);
-    // A TRPO iteration is a batch; SAC has none, so its tests count in
-    // thousands of steps.
-    let per = match cfg.learner {
-        MujocoLearner::Trpo => cfg.trpo.steps_per_batch as u64,
-        MujocoLearner::Sac => 1_000,
-    };
-    bar.stop_at = stop_after.map(|k| k * per);
-    let outcome = run::run_with(&dir, Some(cfg), start, interrupt::flag(), &mut bar)?;
+    bar.stop_at = stop_after.map(|k| k * cfg.iteration_steps());
+    let outcome = launch::run_with(&dir, Some(cfg), start, interrupt::flag(), &mut bar)?;
     drop(bar);
     if outcome == Outcome::Interrupted {
         println!("interrupted; continue with --resume {}", dir.display());
@@ -411,21 +400,19 @@ fn start_run(
 }
 
 /// Bars of the grid's running cells under one another.
-struct GridBars {
-    multi: MultiProgress,
-}
+struct GridBars(MultiProgress);
 
 impl GridProgress for GridBars {
     fn note(&self, text: &str) {
-        if self.multi.is_hidden() {
+        if self.0.is_hidden() {
             eprintln!("{text}");
         } else {
-            let _ = self.multi.println(text);
+            let _ = self.0.println(text);
         }
     }
 
     fn cell(&self, label: &str) -> Box<dyn Progress + '_> {
-        Box::new(Bar::labelled(label.to_string(), Some(&self.multi)))
+        Box::new(Bar::labelled(label.to_string(), Some(&self.0)))
     }
 }
 
@@ -453,9 +440,7 @@ fn table(args: TableArgs) -> anyhow::Result<()> {
     let started = Instant::now();
     if !args.report_only {
         interrupt::install();
-        let bars = GridBars {
-            multi: MultiProgress::new(),
-        };
+        let bars = GridBars(MultiProgress::new());
         let outcome = table::run_grid(&cfg, interrupt::flag(), &bars)?;
         eprint!("{}", outcome.notes());
     }

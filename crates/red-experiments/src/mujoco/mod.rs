@@ -1,14 +1,14 @@
 //! The MuJoCo experiments (paper Sec. 5.2) on Gymnasium's `-v5` Hopper,
 //! HalfCheetah, Walker2d, Ant and Reacher: one TRPO or behaviour-cloning
-//! run (or a SAC expert, `sac_run`) with its folder, checkpoints, best checkpoint and evaluation
-//! ([`run`]), and the grid of Table 1 with its table and learning curves
+//! run, or a SAC expert, with its folder, checkpoints, best checkpoint and
+//! evaluation ([`launch`] starts it, [`run`] holds its settings), and the grid of Table 1 with its table and learning curves
 //! ([`table`]).
 //!
 //! An expert, then RED imitating it, from Rust, with tiny budgets:
 //!
 //! ```no_run
 //! use std::sync::atomic::AtomicBool;
-//! use red_experiments::mujoco::{Method, run::{self, Outcome, RunConfig}};
+//! use red_experiments::mujoco::{Method, launch, run::{self, Outcome, RunConfig}};
 //! use red_mujoco::EnvId;
 //!
 //! let stop = AtomicBool::new(false);
@@ -16,12 +16,12 @@
 //! let mut expert = RunConfig::for_task(EnvId::Hopper, Method::Expert);
 //! expert.steps = 8192;
 //! let dir = out.join("expert-hopper");
-//! run::run(&dir, Some(expert), false, &stop, &mut red_experiments::Silent)?;
+//! launch::run(&dir, Some(expert), false, &stop, &mut red_experiments::Silent)?;
 //! let mut red = RunConfig::for_task(EnvId::Hopper, Method::Red);
 //! red.steps = 4096;
 //! red.demo = Some(dir.join("demos.json"));
 //! let dir = out.join("hopper-red");
-//! if run::run(&dir, Some(red), false, &stop, &mut red_experiments::Silent)? == Outcome::Finished {
+//! if launch::run(&dir, Some(red), false, &stop, &mut red_experiments::Silent)? == Outcome::Finished {
 //!     print!("{}", run::read_eval(&dir).expect("finished").summary(&dir));
 //! }
 //! # Ok::<(), red_experiments::Error>(())
@@ -33,6 +33,7 @@ use red_mujoco::EnvId;
 
 pub mod check;
 pub mod demos;
+pub mod launch;
 pub mod run;
 mod sac_run;
 pub mod slurm;
@@ -71,7 +72,7 @@ pub fn default_run_name(env: EnvId, method: Method, seed: u64) -> String {
 /// it is.
 ///
 /// # Errors
-/// The importer's errors, naming the file; [`Error::Input`] when the
+/// The importer's errors, naming the file; [`crate::Error::Input`] when the
 /// dimensions do not match the task's.
 pub fn import_demos(
     format: red_core::import::ImportFormat,

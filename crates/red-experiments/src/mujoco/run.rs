@@ -7,7 +7,7 @@
 //! - `config.json`: every setting ([`RunConfig`]);
 //! - `checkpoint.json`: the whole state (trainer, reward model, counters),
 //!   written atomically every `checkpoint_every` iterations, when stopped
-//!   and at the end; [`run`] with `resume` continues from it;
+//!   and at the end; [`super::launch::run`] with `resume` continues from it;
 //! - `metrics.csv`: one row per TRPO iteration (true return, imitation
 //!   reward, losses, MuJoCo warnings);
 //! - `best_policy.json`: the policy whenever the mean TRUE return of the
@@ -265,6 +265,16 @@ impl Default for RunConfig {
 }
 
 impl RunConfig {
+    /// Environment steps of one iteration: a TRPO batch; SAC has no
+    /// batches, so its iteration is 1,000 steps (for `stop_after`-style
+    /// counts).
+    pub fn iteration_steps(&self) -> u64 {
+        match self.learner {
+            MujocoLearner::Trpo => self.trpo.steps_per_batch as u64,
+            MujocoLearner::Sac => 1_000,
+        }
+    }
+
     /// The defaults for `method` on `env` (see each field).
     pub fn for_task(env: EnvId, method: Method) -> Self {
         let mut trpo = TrpoConfig::default();
@@ -498,12 +508,12 @@ struct RunStateRef<'a> {
     wall_s: f64,
 }
 
-/// How a call to [`run`] ended.
+/// How a call to [`super::launch::run`] ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Outcome {
     /// Trained, evaluated, outputs written.
     Finished,
-    /// Stopped on request (the stop flag) after saving a checkpoint; [`run`]
+    /// Stopped on request (the stop flag) after saving a checkpoint; [`super::launch::run`]
     /// with `resume` continues.
     Interrupted,
 }
@@ -967,7 +977,7 @@ impl TrpoHooks<WatchedEnv> for RunHooks<'_> {
     }
 }
 
-/// How [`run_with`] treats the run folder.
+/// How [`super::launch::run_with`] treats the run folder.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Start {
     /// A new run; a folder that holds files is refused.
@@ -1081,21 +1091,6 @@ impl RunFlags {
     }
 }
 
-/// [`run_with`] with [`Start::Resume`] when `resume`, else [`Start::New`].
-///
-/// # Errors
-/// As [`run_with`].
-pub fn run(
-    dir: &Path,
-    cfg: Option<RunConfig>,
-    resume: bool,
-    stop: &AtomicBool,
-    progress: &mut dyn Progress,
-) -> Result<Outcome> {
-    let start = if resume { Start::Resume } else { Start::New };
-    run_with(dir, cfg, start, stop, progress)
-}
-
 /// The settings a checkpoint must have been made with: all but the step
 /// budget, which a resume may change.
 pub(super) fn checkpoint_settings(cfg: &RunConfig) -> RunConfig {
@@ -1128,32 +1123,20 @@ impl RunState {
     }
 }
 
-/// Starts a new run in `dir` (which must not hold one, unless
-/// [`Start::Force`] moves it aside) with `cfg`, or continues the one there
-/// ([`Start::Resume`]: its `config.json` is used; `cfg` only supplies the
-/// step budget: a larger one trains on, one at or below the steps done ends
-/// the run there, with its evaluation). The folder is locked for the run's
-/// life ([`RunDir`]).
-///
-/// `stop` is checked before every TRPO iteration: once set, the run saves
-/// its checkpoint and returns [`Outcome::Interrupted`]. `progress` hears of
-/// the fitted reward, each iteration (env steps and the recent return),
-/// MuJoCo warnings, and the evaluation.
+/// Opens the run folder of [`super::launch::run_with`]: a new run's folder
+/// with its `config.json`, or the one to resume (whose `config.json` is
+/// used, with `cfg`'s step budget). Returns the folder, the settings and
+/// whether the run resumes.
 ///
 /// # Errors
-/// Bad settings or files, a failed fit, a non-finite quantity during
-/// training (the last good checkpoint is kept), an environment error; a
-/// checkpoint that fails its checksum, was made with other settings than
-/// `config.json` or holds values that make no sense.
-pub fn run_with(
+/// Bad settings or demonstrations, a folder that holds a run ([`Start::New`])
+/// or none to resume.
+pub(super) fn open_run(
     dir: &Path,
     cfg: Option<RunConfig>,
     start: Start,
-    stop: &AtomicBool,
-    progress: &mut dyn Progress,
-) -> Result<Outcome> {
-    let resume = start == Start::Resume;
-    let (rd, cfg, state) = if resume {
+) -> Result<(RunDir, RunConfig, bool)> {
+    if start == Start::Resume {
         let rd = RunDir::open(dir)?;
         let mut saved = read_config(dir)?;
         if let Some(c) = &cfg
@@ -1162,40 +1145,47 @@ pub fn run_with(
             saved.steps = c.steps;
             rd.write_json("config.json", &saved)?;
         }
-        if saved.learner == MujocoLearner::Sac {
-            return super::sac_run::run(rd, saved, true, stop, progress);
-        }
-        let state = if rd.file("checkpoint.json").is_file() {
-            let path = rd.file("checkpoint.json");
-            let s: RunState =
-                load_checkpoint_for(&path, CHECKPOINT_KIND, &checkpoint_settings(&saved))
-                    .with_context(|| format!("resuming {}", dir.display()))?;
-            s.trainer.config().validate()?;
-            s.check(&saved).map_err(|reason| Error::Input {
-                path: path.clone(),
-                reason: format!("{reason}; the checkpoint cannot be resumed"),
-            })?;
-            Some(s)
-        } else {
-            None
-        };
-        (rd, saved, state)
-    } else {
-        let cfg = cfg.ok_or_else(|| Error::InvalidConfig {
-            field: "config".into(),
-            reason: "no settings given for a new run".into(),
+        return Ok((rd, saved, true));
+    }
+    let cfg = cfg.ok_or_else(|| Error::InvalidConfig {
+        field: "config".into(),
+        reason: "no settings given for a new run".into(),
+    })?;
+    cfg.validate()?;
+    if let (true, Some(p)) = (cfg.method.needs_demo(), &cfg.demo) {
+        load_demos(p, cfg.env)?;
+    }
+    let existing = crate::run_dir::Existing::from_force(start == Start::Force);
+    let rd = RunDir::new_at(dir, existing)?;
+    rd.write_json("config.json", &cfg)?;
+    Ok((rd, cfg, false))
+}
+
+/// Trains (or, with `resume`, continues from its checkpoint) the TRPO run
+/// (or behaviour cloning) of `rd`, whose `config.json` holds `cfg`, then
+/// evaluates it ([`super::launch::run_with`] tells the whole story).
+///
+/// # Errors
+/// As [`super::launch::run_with`].
+pub(super) fn train(
+    rd: RunDir,
+    cfg: RunConfig,
+    resume: bool,
+    stop: &AtomicBool,
+    progress: &mut dyn Progress,
+) -> Result<Outcome> {
+    let state = if resume && rd.file("checkpoint.json").is_file() {
+        let path = rd.file("checkpoint.json");
+        let s: RunState = load_checkpoint_for(&path, CHECKPOINT_KIND, &checkpoint_settings(&cfg))
+            .with_context(|| format!("resuming {}", rd.path().display()))?;
+        s.trainer.config().validate()?;
+        s.check(&cfg).map_err(|reason| Error::Input {
+            path: path.clone(),
+            reason: format!("{reason}; the checkpoint cannot be resumed"),
         })?;
-        cfg.validate()?;
-        if let (true, Some(p)) = (cfg.method.needs_demo(), &cfg.demo) {
-            load_demos(p, cfg.env)?;
-        }
-        let existing = crate::run_dir::Existing::from_force(start == Start::Force);
-        let rd = RunDir::new_at(dir, existing)?;
-        rd.write_json("config.json", &cfg)?;
-        if cfg.learner == MujocoLearner::Sac {
-            return super::sac_run::run(rd, cfg, false, stop, progress);
-        }
-        (rd, cfg, None)
+        Some(s)
+    } else {
+        None
     };
     for n in rd.notes() {
         progress.note(n);
@@ -1736,6 +1726,7 @@ pub fn evaluate_file(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mujoco::launch::run;
 
     #[test]
     fn reward_pairs_clip_the_actions_only_when_asked() {

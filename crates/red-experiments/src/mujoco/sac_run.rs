@@ -1,7 +1,7 @@
 //! An `expert` run trained with Soft Actor-Critic ([`red_rl::sac::Sac`]) on
 //! the task's own reward: the same folder, `config.json`, best checkpoint,
 //! evaluation, `eval.json` and demonstrations as a TRPO run
-//! ([`super::run::run_with`] hands such runs here), with its own
+//! ([`super::launch::run_with`] hands such runs here), with its own
 //! checkpoint (the learner whole, replay included, and its random stream),
 //! written every `sac.checkpoint_steps` environment steps, on a stop
 //! request and at the end, so that a resumed run ends with the numbers of
@@ -105,7 +105,7 @@ impl SacState {
 
 /// Trains (or, with `resume`, continues) the SAC expert run of `rd`, whose
 /// `config.json` already holds `cfg`, then evaluates it as
-/// [`super::run::run_with`] does.
+/// [`super::launch::run_with`] does.
 pub(super) fn run(
     rd: RunDir,
     cfg: RunConfig,

@@ -4,7 +4,7 @@
 //! (paper Fig. 4).
 //!
 //! Each cell is a run folder `<out_dir>/<name>/runs/<task>-<method>-s<seed>/`
-//! of [`run::run`]; a finished run is reused, an interrupted one resumed, so
+//! of [`super::launch::run`]; a finished run is reused, an interrupted one resumed, so
 //! the grid can be rerun until it is complete. The table is built from
 //! whatever runs have finished and says which cells are missing.
 
@@ -319,7 +319,7 @@ fn run_job(
     };
     let outcome = {
         let mut cell = progress.cell(&label);
-        run::run(&job.dir, Some(run_cfg), resume, stop, &mut *cell)
+        super::launch::run(&job.dir, Some(run_cfg), resume, stop, &mut *cell)
     };
     if outcome? == Outcome::Finished
         && let Some(e) = run::read_eval(&job.dir)
