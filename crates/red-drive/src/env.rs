@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use red_core::{BoxSpace, Env, Info, Space, Step, TimeLimit};
 use serde::{Deserialize, Serialize};
 
-use crate::config::{ACT_DIM, DT, DriveConfig, NUM_RAYS, OBS_DIM};
+use crate::config::{ACT_DIM, DT, DriveConfig, NUM_LANES, NUM_RAYS, OBS_DIM};
 use crate::track::Track;
 use crate::{Error, Result};
 
@@ -124,6 +124,19 @@ impl World {
             )),
             ray_angles: config.ray_angles(),
         })
+    }
+
+    /// The same road seen in a mirror: every obstacle in the lane on the
+    /// other side of the centre line. A car at `(x, -y)` with heading
+    /// `-h` sees in it what a car at `(x, y)` with heading `h` sees here,
+    /// left and right swapped ([`mirror_pair`]).
+    pub fn mirrored(&self) -> Self {
+        let mut w = self.clone();
+        for o in &mut w.track.obstacles {
+            o.lane = NUM_LANES - 1 - o.lane;
+            o.y = -o.y;
+        }
+        w
     }
 
     /// The settings.
@@ -263,6 +276,22 @@ fn hits(p1: &Pose, s1: &Cuboid, p2: &Pose, s2: &Cuboid) -> bool {
     intersection_test(p1, s1, p2, s2)
         .map(|i| i.intersecting)
         .unwrap_or(true)
+}
+
+/// Turns an observation and action into those of the road seen in a
+/// mirror ([`World::mirrored`]): the lidar's rays in reverse order (the
+/// fan is symmetric about the heading), the lateral offset and the heading
+/// negated, the distance to the wall and the speed kept; the steering
+/// negated, the pedal kept. Used to double a demonstration's pairs
+/// (`train.mirror_demos` of the driving experiment).
+///
+/// # Panics
+/// If `obs` is shorter than [`OBS_DIM`] or `act` is empty.
+pub fn mirror_pair(obs: &mut [f64], act: &mut [f64]) {
+    obs[..NUM_RAYS].reverse();
+    obs[NUM_RAYS] = -obs[NUM_RAYS];
+    obs[NUM_RAYS + 1] = -obs[NUM_RAYS + 1];
+    act[0] = -act[0];
 }
 
 /// `a` wrapped into `(-pi, pi]`.
@@ -793,5 +822,56 @@ mod tests {
         let rate = (env.car().heading - h0) / DT;
         let lat = rate * env.car().speed;
         assert!((lat - 8.0).abs() < 1.0, "lateral acceleration {lat}");
+    }
+    #[test]
+    fn the_mirrored_road_drives_as_the_mirror_image() {
+        let config = DriveConfig {
+            track_seed: 11,
+            ..DriveConfig::default()
+        };
+        let world = World::new(&config).unwrap();
+        let mirror = world.mirrored();
+        assert_ne!(world.track(), mirror.track());
+        assert_eq!(mirror.mirrored().track(), world.track());
+        let mut car = CarState {
+            x: 0.0,
+            y: 1.2,
+            heading: 0.05,
+            speed: 25.0,
+        };
+        let mut twin = CarState {
+            y: -car.y,
+            heading: -car.heading,
+            ..car
+        };
+        let (mut ranges, mut twin_ranges) = ([0.0; NUM_RAYS], [0.0; NUM_RAYS]);
+        let (mut obs, mut twin_obs) = (Vec::new(), Vec::new());
+        let (mut seen_near, mut steps) = (false, 400);
+        for t in 0..400 {
+            // Change lanes (left, right, centre) so that obstacles on both
+            // sides come into view.
+            let target = [0.0, 3.5, -3.5, 0.0][t / 100];
+            let steer = 0.1 * (target - car.y) - 2.0 * car.heading;
+            let mut act = [steer.clamp(-1.0, 1.0), 0.1];
+            world.lidar(&car, &mut ranges);
+            world.observation(&car, &ranges, &mut obs);
+            mirror.lidar(&twin, &mut twin_ranges);
+            mirror.observation(&twin, &twin_ranges, &mut twin_obs);
+            seen_near |= ranges.iter().any(|&r| r < 0.5 * config.lidar_range);
+            let mut mirrored = obs.clone();
+            mirror_pair(&mut mirrored, &mut act);
+            for (i, (a, b)) in mirrored.iter().zip(&twin_obs).enumerate() {
+                assert!((a - b).abs() < 1e-4, "step {t}, number {i}: {a} vs {b}");
+            }
+            let end = mirror.advance(&mut twin, &act);
+            act[0] = -act[0];
+            assert_eq!(world.advance(&mut car, &act), end, "step {t}");
+            if end != Outcome::Driving {
+                steps = t;
+                break;
+            }
+        }
+        assert!(seen_near, "the drive never came near an obstacle");
+        assert!(steps > 100, "the drive ended at step {steps}");
     }
 }

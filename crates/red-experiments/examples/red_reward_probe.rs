@@ -11,7 +11,11 @@
 //! RED clips actions for its reward (`RunConfig::reward_clips_actions`,
 //! Hopper since session 27), the demo actions are clipped for the fit and
 //! every scored action is clipped too, as in the run; `--stored-actions`
-//! turns that off (the reward of session 25's probe table).
+//! turns that off (the reward of session 25's probe table). `--config
+//! FILE` overlays a run's config file on the task's defaults (as
+//! `red-cli mujoco train --config` does); `--pairs FILE` also scores the
+//! pairs of another demonstration file of the task (e.g. a learner's
+//! episodes written by `red-cli mujoco demos --policy`).
 use ndarray::{Array1, Array2, ArrayView2};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -27,10 +31,16 @@ fn main() -> AnyResult<()> {
     let mut files = Vec::new();
     let mut seed = 0u64;
     let mut stored = false;
+    let mut config = None;
+    let mut extra = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         if a == "--seed" {
             seed = args.next().ok_or("--seed needs a value")?.parse()?;
+        } else if a == "--config" {
+            config = Some(args.next().ok_or("--config needs a file")?);
+        } else if a == "--pairs" {
+            extra.push(args.next().ok_or("--pairs needs a file")?);
         } else if a == "--stored-actions" {
             stored = true;
         } else {
@@ -38,15 +48,25 @@ fn main() -> AnyResult<()> {
         }
     }
     if files.is_empty() {
-        return Err("usage: red_reward_probe FILE... [--seed N] [--stored-actions]".into());
+        return Err(
+            "usage: red_reward_probe FILE... [--seed N] [--stored-actions] \
+                    [--config FILE] [--pairs FILE]..."
+                .into(),
+        );
     }
     for f in &files {
-        probe(f, seed, stored)?;
+        probe(f, seed, stored, config.as_deref(), &extra)?;
     }
     Ok(())
 }
 
-fn probe(file: &str, seed: u64, stored: bool) -> AnyResult<()> {
+fn probe(
+    file: &str,
+    seed: u64,
+    stored: bool,
+    config: Option<&str>,
+    extra: &[String],
+) -> AnyResult<()> {
     let raw = red_core::Demos::read(file.as_ref())?;
     let env_id: EnvId = raw.env_id.parse()?;
     let demos = load_demos(file.as_ref(), env_id)?;
@@ -93,6 +113,9 @@ fn probe(file: &str, seed: u64, stored: bool) -> AnyResult<()> {
     println!("per-dimension action std: {stds:.3?}; max |a|: {maxabs:.2?}");
 
     let mut cfg = RunConfig::for_task(env_id, Method::Red);
+    if let Some(path) = config {
+        cfg = cfg.with_overrides(&std::fs::read_to_string(path)?, path.as_ref())?;
+    }
     if stored {
         cfg.reward_clips_actions = false;
     }
@@ -156,6 +179,10 @@ fn probe(file: &str, seed: u64, stored: bool) -> AnyResult<()> {
         )?;
     }
     score("demo states, zero actions", s.view(), zeros.view())?;
+    for f in extra {
+        let (xs, xa) = load_demos(f.as_ref(), env_id)?.pairs();
+        score(&format!("pairs of {f}"), xs.view(), xa.view())?;
+    }
     let (ss, sa) = rollouts(&mut env, 5, seed, |_, _| vec![0.0; low.len()])?;
     score(
         &format!("still policy (a = 0), {} steps of 5 episodes", ss.nrows()),

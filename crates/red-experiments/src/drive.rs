@@ -172,6 +172,15 @@ pub struct DriveTrainConfig {
     /// metrics.csv is where it ended, so episodes started down the road
     /// count from there.
     pub demo_starts: f64,
+    /// Also learn from the demonstration seen in a mirror (our addition,
+    /// off by default): every pair is added a second time with left and
+    /// right swapped ([`red_drive::env::mirror_pair`]: rays reversed,
+    /// lateral offset, heading and steering negated), a pair of the same
+    /// road with every obstacle in the other outer lane. The road is
+    /// symmetric about its centre line, so the mirrored pairs are
+    /// expert-like driving on roads the demonstration never saw. Every
+    /// method's reward, the warm start and the BC term see both.
+    pub mirror_demos: bool,
 }
 
 impl Default for DriveTrainConfig {
@@ -274,6 +283,7 @@ impl Default for DriveTrainConfig {
             train_roads: 0,
             demo_road_share: 0.0,
             demo_starts: 0.0,
+            mirror_demos: false,
         }
     }
 }
@@ -1085,6 +1095,27 @@ fn report(
     ))
 }
 
+/// The state-action pairs the methods learn from: the demonstration's,
+/// each followed by its mirror image when `train.mirror_demos` is on.
+fn training_pairs(train: &DriveTrainConfig, demos: &Demos) -> (Array2<f64>, Array2<f64>) {
+    let (s, a) = demos.pairs();
+    if !train.mirror_demos {
+        return (s, a);
+    }
+    let (n, od, ad) = (s.nrows(), s.ncols(), a.ncols());
+    let mut s2 = Array2::zeros((2 * n, od));
+    let mut a2 = Array2::zeros((2 * n, ad));
+    for i in 0..n {
+        let (mut o, mut u) = (s.row(i).to_vec(), a.row(i).to_vec());
+        s2.row_mut(2 * i).assign(&s.row(i));
+        a2.row_mut(2 * i).assign(&a.row(i));
+        red_drive::env::mirror_pair(&mut o, &mut u);
+        s2.row_mut(2 * i + 1).assign(&ndarray::ArrayView1::from(&o));
+        a2.row_mut(2 * i + 1).assign(&ndarray::ArrayView1::from(&u));
+    }
+    (s2, a2)
+}
+
 /// A fingerprint of the demonstration's pairs, so a resumed run refuses a
 /// changed file.
 fn digest(demos: &Demos) -> String {
@@ -1549,7 +1580,7 @@ pub fn run_new(
     for n in run_dir.notes() {
         progress.note(n);
     }
-    let (es, ea) = demos.pairs();
+    let (es, ea) = training_pairs(&config.train, demos);
     let mut rng = Seeder::new(config.seed).rng(Stream::Init);
     let mut norm = ObsNormalizer::from_data(es.view(), 5.0, 1e-2)?;
     norm.freeze();
@@ -1621,7 +1652,7 @@ fn drive_run(
     let run = ck.config.clone();
     run_dir.write_json("config.json", &run)?;
     let ck_path = run_dir.file("checkpoint.json");
-    let (es, ea) = demos.pairs();
+    let (es, ea) = training_pairs(&run.train, demos);
     let starts = demo_states(&run, demos)?;
     let base_elapsed = ck.elapsed_s;
     while ck.done.len() < run.methods.len() {
@@ -2138,5 +2169,27 @@ mod tests {
         let (_, found, note) = load_demo(&path, Some(road), false).unwrap();
         assert_eq!(found.track_seed, 7);
         assert!(note.unwrap().contains("records no road"));
+    }
+
+    #[test]
+    fn mirrored_demos_follow_each_pair_with_its_mirror_image() {
+        let demos = red_drive::expert_demos(&DriveConfig::default(), 1, 0).unwrap();
+        let (s, a) = demos.pairs();
+        let mut train = DriveTrainConfig::default();
+        assert_eq!(training_pairs(&train, &demos), (s.clone(), a.clone()));
+        train.mirror_demos = true;
+        let (s2, a2) = training_pairs(&train, &demos);
+        assert_eq!((s2.nrows(), a2.nrows()), (2 * s.nrows(), 2 * a.nrows()));
+        for i in 0..s.nrows() {
+            assert_eq!(s2.row(2 * i), s.row(i));
+            assert_eq!(a2.row(2 * i), a.row(i));
+            let (mut o, mut u) = (s.row(i).to_vec(), a.row(i).to_vec());
+            red_drive::env::mirror_pair(&mut o, &mut u);
+            assert_eq!(s2.row(2 * i + 1).to_vec(), o);
+            assert_eq!(a2.row(2 * i + 1).to_vec(), u);
+            // Mirrored twice is the pair again.
+            red_drive::env::mirror_pair(&mut o, &mut u);
+            assert_eq!((o, u), (s.row(i).to_vec(), a.row(i).to_vec()));
+        }
     }
 }
