@@ -1105,13 +1105,14 @@ fn training_pairs(train: &DriveTrainConfig, demos: &Demos) -> (Array2<f64>, Arra
     let (n, od, ad) = (s.nrows(), s.ncols(), a.ncols());
     let mut s2 = Array2::zeros((2 * n, od));
     let mut a2 = Array2::zeros((2 * n, ad));
-    for i in 0..n {
-        let (mut o, mut u) = (s.row(i).to_vec(), a.row(i).to_vec());
-        s2.row_mut(2 * i).assign(&s.row(i));
-        a2.row_mut(2 * i).assign(&a.row(i));
-        red_drive::env::mirror_pair(&mut o, &mut u);
-        s2.row_mut(2 * i + 1).assign(&ndarray::ArrayView1::from(&o));
-        a2.row_mut(2 * i + 1).assign(&ndarray::ArrayView1::from(&u));
+    for i in 0..2 * n {
+        s2.row_mut(i).assign(&s.row(i / 2));
+        a2.row_mut(i).assign(&a.row(i / 2));
+        if i % 2 == 1 {
+            // Rows of a new (standard-layout) array are contiguous.
+            let (mut o, mut u) = (s2.row_mut(i), a2.row_mut(i));
+            red_drive::env::mirror_pair(o.as_slice_mut().unwrap(), u.as_slice_mut().unwrap());
+        }
     }
     (s2, a2)
 }

@@ -107,7 +107,7 @@ pub struct RunConfig {
     ///   final policy over seeds 0-2 at 2M, zero biases -> U(-1, 1): SAC
     ///   demos -11.6, 4177.0, 1508.8 -> 3242.1, 4609.6, 3322.9; the
     ///   project's TRPO demos (1750) 1522.1, 1549.0, 1532.0 -> 1574.5,
-    ///   1568.4, see docs; one trajectory of them (1732.6) 1336.8, 1269.2,
+    ///   1568.4, 1607.4; one trajectory of them (1732.6) 1336.8, 1269.2,
     ///   1408.1 -> 1537.4, 1422.7, 1487.0. U(-3, 3) did more on the SAC
     ///   demos (mean 3927) but wrecked the single trajectory (-209 to 62;
     ///   its σ1, calibrated on held-out scores, fell from 324 to 57).
