@@ -37,9 +37,10 @@ enum MujocoCommand {
     /// env checker (seeded random actions, twice, compared bit for bit) and
     /// print its dimensions and speed.
     Check(CheckArgs),
-    /// Train an expert with TRPO on the true reward, then write its policy
-    /// and a demonstration file of 4 deterministic episodes (the paper's
-    /// protocol) into `runs/expert-<env>/`.
+    /// Train an expert with TRPO (or SAC, `--learner sac`) on the true
+    /// reward, then write its policy and a demonstration file of 4
+    /// deterministic episodes (the paper's protocol) into
+    /// `runs/expert-<env>/`.
     Expert(ExpertArgs),
     /// Imitation with TRPO (RED, AE, GAIL, GMMIL) or behaviour cloning
     /// alone, from a demonstration file; checkpoints, `--resume`, metrics,

@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use red_mujoco::EnvId;
 use serde::{Deserialize, Serialize};
 
-use super::run::{self, EvalFile, Outcome, RunConfig};
+use super::run::{self, EvalFile, EvalSummary, Outcome, RunConfig};
 use super::{Method, default_demo, expert_dir, short_name};
 use crate::grid::OnFailure;
 use crate::plot::{Panel, Series, draw_panels, mean_std};
@@ -381,10 +381,17 @@ pub fn write_report(cfg: &TableConfig) -> Result<TableReport> {
     Ok(TableReport { markdown, csv })
 }
 
-/// Pooled mean and std over every evaluation episode of the seeds.
+/// One cell of the table: the runs of one (task, method) under one protocol.
 struct Cell {
+    /// Mean over the seeds of each seed's mean return (with equal episodes
+    /// per seed, also the mean over every episode).
     mean: f64,
+    /// Standard deviation (population) over every evaluation episode of the
+    /// seeds, pooled.
     std: f64,
+    /// Standard deviation (population) across the seeds' means: the spread
+    /// the table shows when there is more than one seed.
+    seed_std: f64,
     seeds: usize,
     episodes: usize,
     per_seed: Vec<f64>,
@@ -392,7 +399,7 @@ struct Cell {
 }
 
 fn cell(evals: &[&EvalFile], best: bool) -> Option<Cell> {
-    let parts: Vec<_> = evals
+    let parts: Vec<&EvalSummary> = evals
         .iter()
         .filter_map(|e| {
             if best {
@@ -402,6 +409,10 @@ fn cell(evals: &[&EvalFile], best: bool) -> Option<Cell> {
             }
         })
         .collect();
+    cell_of(&parts)
+}
+
+fn cell_of(parts: &[&EvalSummary]) -> Option<Cell> {
     if parts.is_empty() {
         return None;
     }
@@ -409,25 +420,37 @@ fn cell(evals: &[&EvalFile], best: bool) -> Option<Cell> {
         .iter()
         .flat_map(|p| p.returns.iter().copied())
         .collect();
-    let (mean, std) = mean_std(&pooled);
+    let per_seed: Vec<f64> = parts.iter().map(|p| p.mean).collect();
+    let (mean, seed_std) = mean_std(&per_seed);
     Some(Cell {
         mean,
-        std,
+        std: mean_std(&pooled).1,
+        seed_std,
         seeds: parts.len(),
         episodes: pooled.len(),
-        per_seed: parts.iter().map(|p| p.mean).collect(),
+        per_seed,
         steps: parts.iter().map(|p| p.env_steps).max().unwrap_or(0),
     })
 }
 
+/// One seed: mean ± std over its episodes; more: mean ± std across the
+/// seeds' means, with each seed's mean.
 fn fmt_cell(c: &Option<Cell>, missing: usize) -> String {
     match c {
         None => "not run".into(),
         Some(c) => {
-            let mut s = format!("{:.2} ± {:.2}", c.mean, c.std);
-            if c.seeds > 1 {
-                s.push_str(&format!(" ({} seeds)", c.seeds));
-            }
+            let mut s = if c.seeds > 1 {
+                let each: Vec<String> = c.per_seed.iter().map(|x| format!("{x:.1}")).collect();
+                format!(
+                    "{:.2} ± {:.2} ({} seeds: {})",
+                    c.mean,
+                    c.seed_std,
+                    c.seeds,
+                    each.join(", ")
+                )
+            } else {
+                format!("{:.2} ± {:.2}", c.mean, c.std)
+            };
             if missing > 0 {
                 s.push_str(&format!(" [partial: {missing} seed(s) missing]"));
             }
@@ -487,7 +510,7 @@ fn report(root: &Path, cfg: &TableConfig) -> Result<(String, String)> {
 
     let mut md = String::new();
     md.push_str(&format!(
-        "Grid `{}`: TRPO budget {} env steps per run; seeds {:?}; each cell is the mean ± std of the true return over every evaluation episode of its seeds ({} per seed, deterministic actions).\n\n",
+        "Grid `{}`: TRPO budget {} env steps per run; seeds {:?}; {} evaluation episodes per run (deterministic actions, true reward). A cell of one seed is the mean ± std over its episodes; a cell of several is the mean ± std across the seeds' means, each seed's mean in brackets.\n\n",
         cfg.name, cfg.steps, seeds, cfg.eval_episodes
     ));
     let header = |md: &mut String| {
@@ -501,8 +524,9 @@ fn report(root: &Path, cfg: &TableConfig) -> Result<(String, String)> {
         }
         md.push('\n');
     };
-    let mut csv =
-        String::from("env,method,protocol,seeds,episodes,mean,std,per_seed_means,env_steps\n");
+    let mut csv = String::from(
+        "env,method,protocol,seeds,episodes,mean,std,per_seed_means,env_steps,std_across_seeds\n",
+    );
     for (best, title) in [
         (false, "Final policy"),
         (
@@ -548,7 +572,7 @@ fn report(root: &Path, cfg: &TableConfig) -> Result<(String, String)> {
                 md.push_str(&format!(" {text} |"));
                 if let Some(c) = &c {
                     csv.push_str(&format!(
-                        "{},{},{},{},{},{},{},{},{}\n",
+                        "{},{},{},{},{},{},{},{},{},{}\n",
                         env.name(),
                         m.name(),
                         if best { "best_checkpoint" } else { "final" },
@@ -561,7 +585,8 @@ fn report(root: &Path, cfg: &TableConfig) -> Result<(String, String)> {
                             .map(|x| format!("{x:.3}"))
                             .collect::<Vec<_>>()
                             .join(";"),
-                        c.steps
+                        c.steps,
+                        c.seed_std
                     ));
                 }
             }
@@ -650,4 +675,46 @@ fn report(root: &Path, cfg: &TableConfig) -> Result<(String, String)> {
         md.push_str(&format!("Learning curve: `{}`\n", png.display()));
     }
     Ok((md, csv))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn summary(returns: &[f64]) -> EvalSummary {
+        let (mean, std) = mean_std(returns);
+        EvalSummary {
+            protocol: "final".into(),
+            env_steps: 1000,
+            mean,
+            std,
+            mean_length: 1000.0,
+            returns: returns.to_vec(),
+        }
+    }
+
+    #[test]
+    fn a_cell_of_several_seeds_shows_the_spread_across_the_seeds_means() {
+        // Two seeds whose episodes are steady (std 1 within each) but whose
+        // means differ by 100: the spread across seeds is 50, the pooled
+        // spread over episodes about 50 as well, and one seed's cell keeps
+        // its own episodes' std.
+        let a = summary(&[99.0, 101.0]);
+        let b = summary(&[199.0, 201.0, 199.0, 201.0]);
+        let c = cell_of(&[&a, &b]).unwrap();
+        assert_eq!(c.seeds, 2);
+        assert_eq!(c.episodes, 6);
+        assert!((c.mean - 150.0).abs() < 1e-9, "mean of the seeds' means");
+        assert!((c.seed_std - 50.0).abs() < 1e-9);
+        let text = fmt_cell(&Some(c), 1);
+        assert!(
+            text.starts_with("150.00 ± 50.00 (2 seeds: 100.0, 200.0)"),
+            "{text}"
+        );
+        assert!(text.ends_with("[partial: 1 seed(s) missing]"), "{text}");
+
+        let one = cell_of(&[&a]).unwrap();
+        assert_eq!(fmt_cell(&Some(one), 0), "100.00 ± 1.00");
+        assert!(cell_of(&[]).is_none());
+    }
 }
