@@ -260,8 +260,9 @@ fn refusals_name_the_problem() {
 }
 
 /// A SAC expert on Reacher with tiny networks: its demo file, a run stopped
-/// (as on Ctrl-C) that resumes to the numbers of an uninterrupted one, and
-/// SAC refused for an imitation method.
+/// (as on Ctrl-C) that resumes to the numbers of an uninterrupted one; then
+/// RED trained by SAC on those demos, stopped and resumed the same way, and
+/// SAC refused for GAIL.
 #[test]
 fn sac_expert_interrupts_resumes_and_writes_demos() {
     let tmp = tempfile::tempdir().unwrap();
@@ -324,27 +325,80 @@ fn sac_expert_interrupts_resumes_and_writes_demos() {
         std::fs::read_to_string(out.join("split/demos.json")).unwrap()
     );
 
-    // SAC is for experts only.
+    // RED trained by SAC on the expert's demos: its reward fitted once, a
+    // stop that resumes to the numbers of an uninterrupted run, the
+    // imitation return in metrics.csv; GAIL's adaptive reward is refused.
     let demo_path = out.join("full/demos.json").display().to_string();
-    let sac_red = out.join("sac-red.json");
-    std::fs::write(&sac_red, r#"{"learner": "sac"}"#).unwrap();
+    let red = |name: &str, extra: &[&str]| {
+        let mut v = vec![
+            "train",
+            "--env",
+            "reacher",
+            "--method",
+            "red",
+            "--learner",
+            "sac",
+            "--demo",
+            &demo_path,
+            "--steps",
+            "1500",
+            "--seed",
+            "1",
+            "--config",
+            &cfg,
+            "--eval-episodes",
+            "2",
+            "--name",
+            name,
+        ];
+        v.extend_from_slice(extra);
+        cli(&v, out)
+    };
+    let o = red("red-full", &[]);
+    ok(&o);
+    let notes = String::from_utf8_lossy(&o.stderr);
+    assert!(notes.contains("fitted on 200 expert pairs"), "{notes}");
+    let s = ok(&red("red-split", &["--stop-after-iterations", "1"]));
+    assert!(s.contains("interrupted"), "{s}");
+    let split = out.join("red-split").display().to_string();
+    ok(&cli(&["train", "--resume", &split], out));
+    assert_eq!(
+        eval_returns(&out.join("red-full")),
+        eval_returns(&out.join("red-split"))
+    );
+    let rows = metrics_without_time(&out.join("red-full"));
+    assert_eq!(rows, metrics_without_time(&out.join("red-split")));
+    assert!(rows[0].ends_with("imitation_return"), "{}", rows[0]);
+    // RED's reward lies in (0, 1]: a 50-step episode earns at most 50.
+    for r in &rows[1..] {
+        let imitation: f64 = r.rsplit_once(',').unwrap().1.parse().unwrap();
+        assert!(imitation > 0.0 && imitation <= 50.0, "{r}");
+    }
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("red-full/eval.json")).unwrap())
+            .unwrap();
+    assert!(
+        v["demo_mean_imitation_reward"].as_f64().unwrap() > 0.5,
+        "{v}"
+    );
+    assert!(!out.join("red-full/demos.json").exists());
     let o = cli(
         &[
             "train",
             "--env",
             "reacher",
             "--method",
-            "red",
+            "gail",
+            "--learner",
+            "sac",
             "--demo",
             &demo_path,
-            "--config",
-            &sac_red.display().to_string(),
         ],
         out,
     );
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
-        !o.status.success() && err.contains("SAC trains experts only"),
+        !o.status.success() && err.contains("`gail` trains with TRPO"),
         "{err}"
     );
 }

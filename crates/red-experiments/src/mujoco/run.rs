@@ -198,7 +198,9 @@ pub struct RunConfig {
     /// (the paper).
     pub demo_trajectories: usize,
     /// Which learner trains the policy. Default `trpo` (the paper's); `sac`
-    /// (Soft Actor-Critic) trains `expert` runs only. A `config.json`
+    /// (Soft Actor-Critic, our addition) trains `expert` runs on the true
+    /// reward and `red` and `ae` runs on their fitted rewards (the
+    /// adaptive rewards of GAIL and GMMIL train with TRPO). A `config.json`
     /// without the field (written before session 29) reads as `trpo`.
     #[serde(default)]
     pub learner: MujocoLearner,
@@ -423,11 +425,11 @@ impl RunConfig {
             .map_err(|e| e.to_string()),
         )?;
         if self.learner == MujocoLearner::Sac {
-            if self.method != Method::Expert {
+            if !matches!(self.method, Method::Expert | Method::Red | Method::Ae) {
                 return Err(Error::InvalidConfig {
                     field: "learner".into(),
                     reason: format!(
-                        "SAC trains experts only (method `expert`); `{}` trains with TRPO: set learner to trpo",
+                        "SAC trains experts and the fixed rewards of `red` and `ae`; `{}` trains with TRPO: set learner to trpo",
                         self.method.name()
                     ),
                 });
@@ -791,19 +793,7 @@ fn fresh_state(
             });
         }
         None => None,
-        Some((es, ea)) => {
-            let settings = cfg.reward_settings();
-            let mut rng = seeder.rng(Stream::Estimator);
-            let gail_seed = seeder.derive(Stream::Estimator);
-            fit_reward(
-                cfg.method,
-                &settings,
-                es.view(),
-                ea.view(),
-                &mut rng,
-                gail_seed,
-            )?
-        }
+        Some((es, ea)) => fit_run_reward(cfg, es, ea)?,
     };
     if cfg.bc_warm_start_epochs > 0
         && let Some((es, ea)) = &pairs
@@ -825,10 +815,55 @@ fn fresh_state(
     })
 }
 
+/// The run's imitation reward fitted on the expert pairs `es`, `ea` (from
+/// [`reward_pairs`]) with the seed's estimator stream; `None` for `expert`
+/// and `bc`.
+pub(super) fn fit_run_reward(
+    cfg: &RunConfig,
+    es: &Array2<f64>,
+    ea: &Array2<f64>,
+) -> Result<Option<ImitationReward>> {
+    let seeder = Seeder::new(cfg.seed);
+    let settings = cfg.reward_settings();
+    let mut rng = seeder.rng(Stream::Estimator);
+    let gail_seed = seeder.derive(Stream::Estimator);
+    fit_reward(
+        cfg.method,
+        &settings,
+        es.view(),
+        ea.view(),
+        &mut rng,
+        gail_seed,
+    )
+}
+
+/// The line a run prints once its RED or AE reward is fitted: σ1 and the
+/// expert pairs' rewards (`None` for the other rewards).
+pub(super) fn fitted_reward_note(
+    cfg: &RunConfig,
+    reward: &ImitationReward,
+    demos: &Demos,
+    action_box: &BoxSpace,
+) -> Result<Option<String>> {
+    let ImitationReward::Support(r) = reward else {
+        return Ok(None);
+    };
+    let (es, ea) = reward_pairs(cfg, demos, action_box)?;
+    let on = r.rewards(es.view(), ea.view())?;
+    Ok(Some(format!(
+        "{} fitted on {} expert pairs: sigma1 {}, expert pairs' reward mean {:.3}, min {:.3}",
+        cfg.method.label(),
+        es.nrows(),
+        r.sigma1(),
+        on.mean().unwrap_or(f64::NAN),
+        on.iter().copied().fold(f64::INFINITY, f64::min)
+    )))
+}
+
 /// The expert pairs the imitation reward is fitted and checked on: the
 /// demonstrations' pairs, with the actions clipped into `action_box` when
 /// [`RunConfig::reward_clips_actions`] is set.
-fn reward_pairs(
+pub(super) fn reward_pairs(
     cfg: &RunConfig,
     demos: &Demos,
     action_box: &BoxSpace,
@@ -1231,17 +1266,9 @@ pub(super) fn train(
         None => {
             let s = fresh_state(&cfg, demos.as_ref(), od, &act_box)?;
             rd.save_checkpoint(CHECKPOINT_KIND, &checkpoint_settings(&cfg), &s)?;
-            if let (Some(ImitationReward::Support(r)), Some(d)) = (&s.reward, &demos) {
-                let (es, ea) = reward_pairs(&cfg, d, &act_box)?;
-                let on = r.rewards(es.view(), ea.view())?;
-                let msg = format!(
-                    "{} fitted on {} expert pairs: sigma1 {}, expert pairs' reward mean {:.3}, min {:.3}",
-                    cfg.method.label(),
-                    es.nrows(),
-                    r.sigma1(),
-                    on.mean().unwrap_or(f64::NAN),
-                    on.iter().copied().fold(f64::INFINITY, f64::min)
-                );
+            if let (Some(r), Some(d)) = (&s.reward, &demos)
+                && let Some(msg) = fitted_reward_note(&cfg, r, d, &act_box)?
+            {
                 progress.note(&msg);
             }
             s

@@ -1,6 +1,10 @@
-//! An `expert` run trained with Soft Actor-Critic ([`red_rl::sac::Sac`]) on
-//! the task's own reward: the same folder, `config.json`, best checkpoint,
-//! evaluation, `eval.json` and demonstrations as a TRPO run
+//! A run trained with Soft Actor-Critic ([`red_rl::sac::Sac`], our
+//! addition): an `expert` on the task's own reward, or `red` and `ae` on
+//! their imitation reward (fitted once on the demonstrations, as for TRPO;
+//! SAC's tanh-squashed actions always lie in the action box, so the reward
+//! sees the actions the task receives). The same folder, `config.json`,
+//! best checkpoint, evaluation, `eval.json` and (for an expert)
+//! demonstrations as a TRPO run
 //! ([`super::launch::run_with`] hands such runs here), with its own
 //! checkpoint (the learner whole, replay included, and its random stream),
 //! written every `sac.checkpoint_steps` environment steps, on a stop
@@ -16,14 +20,16 @@ use red_core::checkpoint::load_checkpoint_for;
 use red_core::{Env, Seeder, Stream};
 use red_mujoco::watched::MJ_N_WARNING;
 use red_mujoco::{WatchedEnv, describe_warnings};
+use red_rl::episodic::EpisodicLearner;
 use red_rl::policy::GaussianPolicy;
 use red_rl::sac::Sac;
 use serde::{Deserialize, Serialize};
 
 use super::run::{
-    BestRecord, Outcome, RunConfig, Trained, action_box, checkpoint_settings, finish_run, num,
-    save_policy,
+    BestRecord, Outcome, RunConfig, Trained, action_box, checkpoint_settings, finish_run,
+    fit_run_reward, fitted_reward_note, load_demos, num, reward_pairs, save_policy,
 };
+use crate::imitation::ImitationReward;
 use crate::{Error, Progress, Result, ResultExt, RunDir};
 
 /// The checkpoint kind of a SAC run (a TRPO checkpoint is refused).
@@ -34,6 +40,10 @@ pub const SAC_CHECKPOINT_KIND: &str = "mujoco-sac";
 /// as in a TRPO run's, so the grid's curves read both).
 const SAC_METRICS_HEADER: &str =
     "episode,env_steps,length,true_return,true_return_window,alpha,mujoco_warnings,wall_s";
+
+/// `metrics.csv` of a `red` or `ae` run: the same with the episode's sum
+/// of imitation rewards before the wall time.
+const SAC_IMITATION_METRICS_HEADER: &str = "episode,env_steps,length,true_return,true_return_window,alpha,mujoco_warnings,imitation_return,wall_s";
 
 /// Seconds between rewrites of `metrics.csv` between checkpoints (Hopper
 /// starts with episodes of a few dozen steps: a rewrite per episode would
@@ -54,10 +64,19 @@ struct SacState {
     metrics: String,
     /// Wall time spent in earlier sessions of the run.
     wall_s: f64,
+    /// The imitation reward of a `red` or `ae` run (`None` for an expert;
+    /// checkpoints of expert runs from before it existed have none).
+    #[serde(default)]
+    reward: Option<ImitationReward>,
 }
 
 impl SacState {
-    fn fresh(cfg: &RunConfig, obs_dim: usize, act_dim: usize) -> Result<Self> {
+    fn fresh(
+        cfg: &RunConfig,
+        obs_dim: usize,
+        act_dim: usize,
+        reward: Option<ImitationReward>,
+    ) -> Result<Self> {
         let seeder = Seeder::new(cfg.seed);
         let mut init = seeder.rng(Stream::Init);
         let pc = red_rl::policy::GaussianPolicyConfig {
@@ -73,8 +92,12 @@ impl SacState {
             recent: VecDeque::new(),
             best: None,
             mujoco_warnings: [0; MJ_N_WARNING],
-            metrics: format!("{SAC_METRICS_HEADER}\n"),
+            metrics: match reward {
+                Some(_) => format!("{SAC_IMITATION_METRICS_HEADER}\n"),
+                None => format!("{SAC_METRICS_HEADER}\n"),
+            },
             wall_s: 0.0,
+            reward,
         })
     }
 
@@ -86,6 +109,23 @@ impl SacState {
             );
         }
         crate::checks::check_policy("the policy", self.sac.policy(), &cfg.sac.policy.hidden)?;
+        let wants_reward = cfg.method.needs_demo();
+        if wants_reward != self.reward.is_some() {
+            return Err(format!(
+                "a `{}` run {} a fitted imitation reward, and the checkpoint {} one",
+                cfg.method.name(),
+                if wants_reward {
+                    "needs"
+                } else {
+                    "has no use for"
+                },
+                if self.reward.is_some() {
+                    "holds"
+                } else {
+                    "does not hold"
+                }
+            ));
+        }
         if self.sac.replay_len() as u64 > self.sac.env_steps() {
             return Err(format!(
                 "holds {} replayed transitions after {} environment steps",
@@ -103,7 +143,7 @@ impl SacState {
     }
 }
 
-/// Trains (or, with `resume`, continues) the SAC expert run of `rd`, whose
+/// Trains (or, with `resume`, continues) the SAC run of `rd`, whose
 /// `config.json` already holds `cfg`, then evaluates it as
 /// [`super::launch::run_with`] does.
 pub(super) fn run(
@@ -129,6 +169,10 @@ pub(super) fn run(
             ),
         });
     }
+    let demos = match &cfg.demo {
+        Some(p) if cfg.method.needs_demo() => Some(load_demos(p, cfg.env)?),
+        _ => None,
+    };
     let ckpt = rd.file("checkpoint.json");
     let mut state = if resume && ckpt.is_file() {
         let s: SacState =
@@ -141,7 +185,23 @@ pub(super) fn run(
         s
     } else {
         let (od, ad) = (env.observation_space().dim(), act_box.dim());
-        let mut s = SacState::fresh(&cfg, od, ad)?;
+        let reward = match &demos {
+            Some(d) => {
+                let (es, ea) = reward_pairs(&cfg, d, &act_box)?;
+                let r = fit_run_reward(&cfg, &es, &ea)?;
+                if let Some(msg) = r
+                    .as_ref()
+                    .map(|r| fitted_reward_note(&cfg, r, d, &act_box))
+                    .transpose()?
+                    .flatten()
+                {
+                    progress.note(&msg);
+                }
+                r
+            }
+            None => None,
+        };
+        let mut s = SacState::fresh(&cfg, od, ad, reward)?;
         s.save(&rd, &cfg, 0.0)?;
         s
     };
@@ -151,7 +211,7 @@ pub(super) fn run(
     let wall_before = state.wall_s;
     let wall = |session: &Instant| wall_before + session.elapsed().as_secs_f64();
     progress.start(
-        &format!("{} expert (SAC)", super::short_name(cfg.env)),
+        &format!("{} {} (SAC)", super::short_name(cfg.env), cfg.method.name()),
         cfg.steps,
         state.sac.env_steps().min(cfg.steps),
     );
@@ -171,16 +231,21 @@ pub(super) fn run(
         }
         let before = state.sac.env_steps();
         let left = cfg.steps - before;
-        let ep = state
-            .sac
-            .run_env_episode(&mut env, None, left, &mut state.rng)
-            .with_context(|| {
-                format!(
-                    "SAC episode {} from env step {before} (last good checkpoint kept: {})",
-                    state.episodes + 1,
-                    ckpt.display()
-                )
-            })?;
+        let ep = match &state.reward {
+            Some(r) => state
+                .sac
+                .run_episode(&mut env, r, None, &|_| 0.0, left, &mut state.rng),
+            None => state
+                .sac
+                .run_env_episode(&mut env, None, left, &mut state.rng),
+        }
+        .with_context(|| {
+            format!(
+                "SAC episode {} from env step {before} (last good checkpoint kept: {})",
+                state.episodes + 1,
+                ckpt.display()
+            )
+        })?;
         state.episodes += 1;
         let step = state.sac.env_steps();
         let fresh = env.take_warnings();
@@ -214,8 +279,12 @@ pub(super) fn run(
                 iteration: state.episodes,
             });
         }
+        let imitation = match state.reward {
+            Some(_) => format!("{},", num(ep.report.imitation_return)),
+            None => String::new(),
+        };
         let row = format!(
-            "{},{step},{},{},{},{},{},{:.3}\n",
+            "{},{step},{},{},{},{},{},{imitation}{:.3}\n",
             state.episodes,
             ep.report.length,
             num(ret),
@@ -241,9 +310,9 @@ pub(super) fn run(
         policy: state.sac.policy().clone(),
         env_steps: state.sac.env_steps(),
         best: state.best,
-        reward: None,
+        reward: state.reward,
         mujoco_warnings: state.mujoco_warnings,
         wall_before,
     };
-    finish_run(&rd, &cfg, None, &act_box, done, session, progress)
+    finish_run(&rd, &cfg, demos.as_ref(), &act_box, done, session, progress)
 }
