@@ -103,9 +103,9 @@ struct CommonRunArgs {
     /// Stop as Ctrl-C does once this many iterations are done (for tests).
     #[arg(long, hide = true)]
     pub stop_after_iterations: Option<u64>,
-    /// The learner: trpo (the paper's, 5,000,000 steps by default) or sac
-    /// (Soft Actor-Critic, experts only, 1,000,000 steps by default;
-    /// checkpoints every 100,000 steps hold its whole replay).
+    /// The learner: trpo (the paper's) or sac (Soft Actor-Critic: experts,
+    /// red and ae; 1,000,000 steps by default; checkpoints every 100,000
+    /// steps hold its whole replay).
     #[arg(long, conflicts_with = "resume", value_parser = |s: &str| s.parse::<MujocoLearner>())]
     pub learner: Option<MujocoLearner>,
 }
