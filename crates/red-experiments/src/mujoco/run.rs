@@ -161,7 +161,7 @@ pub struct RunConfig {
     pub bc: BcConfig,
     /// Epochs of the behaviour-cloning warm start before TRPO; 0 for none.
     /// Default: 100 for `red` on HalfCheetah, Ant (the paper warm-starts
-    /// these two), Walker2d and Hopper (our additions), as the `bc` method: cloning
+    /// these two), Walker2d, Hopper and Reacher (our additions), as the `bc` method: cloning
     /// until its loss flattens; as the release, 20 and 10 on HalfCheetah and
     /// Ant for `ae`; none elsewhere (the paper: GAIL and GMMIL start from a
     /// random policy). Measured on HalfCheetah at 1M steps (RED, width 128,
@@ -177,7 +177,10 @@ pub struct RunConfig {
     /// warm start 3603.68, 3319.41, 3170.38 and 3586.55, 2579.05, 3124.60
     /// (BC alone, seed 0: 2146.55 and 2415.84); the project's own demos
     /// 3202.38 without, 3355.82 with (seed 0). See docs/results/mujoco.md,
-    /// "RED on demos with raw actions: diagnosis (session 25)".
+    /// "RED on demos with raw actions: diagnosis (session 25)". Reacher
+    /// (session 31, 2M steps, seeds 0-2, with log-std -1): the TRPO
+    /// expert's demos -9.78 without, -6.22 with; a SAC expert's mean-action
+    /// demos -10.45 and -8.75; its sampled ones -11.37 and -10.56.
     pub bc_warm_start_epochs: usize,
     /// Epochs of the `bc` method. Default 100 (our choice: the release does
     /// not report BC alone on MuJoCo; 100 epochs over 4000 pairs is about
@@ -317,7 +320,7 @@ impl RunConfig {
             ..AutoencoderConfig::default()
         };
         let bc_warm_start_epochs = match (method, env) {
-            (Method::Red, EnvId::Hopper | EnvId::HalfCheetah | EnvId::Ant | EnvId::Walker2d) => 100,
+            (Method::Red, _) => 100,
             (Method::Ae, EnvId::HalfCheetah) => 20,
             (Method::Ae, EnvId::Ant) => 10,
             _ => 0,
@@ -2124,6 +2127,11 @@ mod tests {
         assert!(!w.reward_clips_actions);
         let r = RunConfig::for_task(EnvId::Reacher, Method::Red);
         assert!(r.rnd.standardize && r.rnd.output == 20);
+        // Reacher since session 31: warm-started like the others.
+        assert_eq!(
+            (r.bc_warm_start_epochs, r.trpo.policy.init_log_std),
+            (100, -1.0)
+        );
         assert_eq!(
             RunConfig::release_sigma1(EnvId::HalfCheetah, Method::Red),
             25_000.0
