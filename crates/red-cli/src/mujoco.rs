@@ -42,8 +42,8 @@ enum MujocoCommand {
     /// deterministic episodes (the paper's protocol) into
     /// `runs/expert-<env>/`.
     Expert(ExpertArgs),
-    /// Imitation with TRPO (RED, AE, GAIL, GMMIL) or behaviour cloning
-    /// alone, from a demonstration file; checkpoints, `--resume`, metrics,
+    /// Imitation with TRPO (RED, AE, GAIL, GMMIL; RED and AE also with
+    /// SAC) or behaviour cloning alone, from a demonstration file; checkpoints, `--resume`, metrics,
     /// best checkpoint by true return, final evaluation.
     Train(TrainArgs),
     /// Evaluate a saved policy: deterministic actions (or sampled with

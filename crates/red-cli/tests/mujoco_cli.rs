@@ -382,6 +382,33 @@ fn sac_expert_interrupts_resumes_and_writes_demos() {
         "{v}"
     );
     assert!(!out.join("red-full/demos.json").exists());
+    // SAC starts from a random policy: RED's TRPO warm start is dropped
+    // from the task's defaults, and refused when a config file asks for it.
+    let conf: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("red-full/config.json")).unwrap())
+            .unwrap();
+    assert_eq!(conf["bc_warm_start_epochs"], 0);
+    let warm = out.join("sac-warm.json");
+    std::fs::write(&warm, r#"{"learner": "sac", "bc_warm_start_epochs": 100}"#).unwrap();
+    let o = cli(
+        &[
+            "train",
+            "--env",
+            "reacher",
+            "--method",
+            "red",
+            "--demo",
+            &demo_path,
+            "--config",
+            &warm.display().to_string(),
+        ],
+        out,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("bc_warm_start_epochs"),
+        "{err}"
+    );
     let o = cli(
         &[
             "train",

@@ -178,9 +178,11 @@ pub struct RunConfig {
     /// (BC alone, seed 0: 2146.55 and 2415.84); the project's own demos
     /// 3202.38 without, 3355.82 with (seed 0). See docs/results/mujoco.md,
     /// "RED on demos with raw actions: diagnosis (session 25)". Reacher
-    /// (session 31, 2M steps, seeds 0-2, with log-std -1): the TRPO
-    /// expert's demos -9.78 without, -6.22 with; a SAC expert's mean-action
-    /// demos -10.45 and -8.75; its sampled ones -11.37 and -10.56.
+    /// (session 31, 2M steps, mean of seeds 0-2): the TRPO expert's demos
+    /// -9.78 without (log-std 0), -6.22 with (100 epochs, log-std -1); a
+    /// SAC expert's mean-action demos -10.45 and -8.75; its sampled ones
+    /// -11.37 and -10.56. SAC runs have none (they start from a random
+    /// policy).
     pub bc_warm_start_epochs: usize,
     /// Epochs of the `bc` method. Default 100 (our choice: the release does
     /// not report BC alone on MuJoCo; 100 epochs over 4000 pairs is about
@@ -273,8 +275,8 @@ impl Default for SacRunConfig {
     }
 }
 
-/// Environment steps of an `expert` run trained with SAC unless set
-/// (`RunFlags::learner`): 1,000,000, where SAC's published MuJoCo curves
+/// Environment steps of a run trained with SAC (an expert, `red` or `ae`)
+/// unless set (`RunFlags::learner`): 1,000,000, where SAC's published MuJoCo curves
 /// are reported (Haarnoja et al. 2018b, Fig. 1).
 pub const SAC_EXPERT_STEPS: u64 = 1_000_000;
 
@@ -435,6 +437,12 @@ impl RunConfig {
                         "SAC trains experts and the fixed rewards of `red` and `ae`; `{}` trains with TRPO: set learner to trpo",
                         self.method.name()
                     ),
+                });
+            }
+            if self.bc_warm_start_epochs > 0 {
+                return Err(Error::InvalidConfig {
+                    field: "bc_warm_start_epochs".into(),
+                    reason: "SAC starts from a random policy (its 10,000 uniform-action steps); the behaviour-cloning warm start is TRPO's: set it to 0".into(),
                 });
             }
             field(
@@ -1106,6 +1114,16 @@ impl RunFlags {
         }
         if let Some(l) = self.learner {
             cfg.learner = l;
+        }
+        // SAC starts from a random policy: the task's TRPO warm start is
+        // dropped unless the config file asks for one (which is refused).
+        let file_sets_warm_start = self.config.as_ref().is_some_and(|(_, text)| {
+            serde_json::from_str::<serde_json::Value>(text)
+                .ok()
+                .is_some_and(|v| v.get("bc_warm_start_epochs").is_some())
+        });
+        if cfg.learner == MujocoLearner::Sac && !file_sets_warm_start {
+            cfg.bc_warm_start_epochs = 0;
         }
         cfg.seed = self.seed;
         cfg.steps = self.steps.unwrap_or(cfg.steps);

@@ -2,14 +2,16 @@
 //! addition): an `expert` on the task's own reward, or `red` and `ae` on
 //! their imitation reward (fitted once on the demonstrations, as for TRPO;
 //! SAC's tanh-squashed actions always lie in the action box, so the reward
-//! sees the actions the task receives). The same folder, `config.json`,
-//! best checkpoint, evaluation, `eval.json` and (for an expert)
-//! demonstrations as a TRPO run
-//! ([`super::launch::run_with`] hands such runs here), with its own
-//! checkpoint (the learner whole, replay included, and its random stream),
-//! written every `sac.checkpoint_steps` environment steps, on a stop
-//! request and at the end, so that a resumed run ends with the numbers of
-//! an uninterrupted one.
+//! sees the actions the task receives). [`super::launch::run_with`] hands
+//! such runs here. The same folder, `config.json`, best checkpoint,
+//! evaluation, `eval.json` and (for an expert) demonstrations as a TRPO
+//! run; no behaviour-cloning warm start (SAC starts from a random policy;
+//! `bc_warm_start_epochs`, `freeze_obs_norm_from_demo` and `trpo` are
+//! TRPO's). Its own checkpoint (the learner whole, replay included, its
+//! random stream and the fitted reward) is written every
+//! `sac.checkpoint_steps` environment steps, on a stop request and at the
+//! end, so that a resumed run ends with the numbers of an uninterrupted
+//! one.
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -510,7 +510,7 @@ fn report(root: &Path, cfg: &TableConfig) -> Result<(String, String)> {
 
     let mut md = String::new();
     md.push_str(&format!(
-        "Grid `{}`: TRPO budget {} env steps per run; seeds {:?}; {} evaluation episodes per run (deterministic actions, true reward). A cell of one seed is the mean ± std over its episodes; a cell of several is the mean ± std across the seeds' means, each seed's mean in brackets.\n\n",
+        "Grid `{}`: TRPO budget {} env steps per run; seeds {:?}; {} evaluation episodes per run (deterministic actions, true reward). A cell of one seed is the mean ± std over its episodes; a cell of several is the mean ± std across the seeds' means, each seed's mean in parentheses; in `table.csv`, `mean` is the mean of the seeds' means, `std` the pooled std over every episode and `std_across_seeds` the std of the seeds' means (0 for one seed).\n\n",
         cfg.name, cfg.steps, seeds, cfg.eval_episodes
     ));
     let header = |md: &mut String| {
@@ -697,7 +697,7 @@ mod tests {
     fn a_cell_of_several_seeds_shows_the_spread_across_the_seeds_means() {
         // Two seeds whose episodes are steady (std 1 within each) but whose
         // means differ by 100: the spread across seeds is 50, the pooled
-        // spread over episodes about 50 as well, and one seed's cell keeps
+        // spread over episodes about 47.6, and one seed's cell keeps
         // its own episodes' std.
         let a = summary(&[99.0, 101.0]);
         let b = summary(&[199.0, 201.0, 199.0, 201.0]);
@@ -706,6 +706,7 @@ mod tests {
         assert_eq!(c.episodes, 6);
         assert!((c.mean - 150.0).abs() < 1e-9, "mean of the seeds' means");
         assert!((c.seed_std - 50.0).abs() < 1e-9);
+        assert!((c.std - 47.6).abs() < 0.1, "pooled std {}", c.std);
         let text = fmt_cell(&Some(c), 1);
         assert!(
             text.starts_with("150.00 ± 50.00 (2 seeds: 100.0, 200.0)"),
