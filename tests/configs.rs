@@ -291,10 +291,26 @@ fn experiment_configs() {
             ("/svg/gamma", json!(1.5), "gamma"),
             ("/policy/hidden", json!([0]), "train.policy"),
             ("/select_episodes", json!(0), "select_episodes"),
-            // Default train_roads is 0: a share without other roads.
-            ("/demo_road_share", json!(0.5), "demo_road_share"),
             ("/demo_starts", json!(-0.1), "demo_starts"),
+            // Default train_roads is 50: starts on the demo's road clash.
+            (
+                "/demo_starts",
+                json!(0.5),
+                "cannot be combined with train_roads",
+            ),
         ],
+    );
+    // On the demonstration's road alone (the paper's setting), a share of
+    // other-road episodes has no roads to go to.
+    let one_road = red_experiments::drive::DriveTrainConfig {
+        train_roads: 0,
+        ..Default::default()
+    };
+    check_from(
+        "DriveTrainConfig on one road",
+        &one_road,
+        |c: &red_experiments::drive::DriveTrainConfig| c.validate(),
+        &[("/demo_road_share", json!(0.5), "needs train_roads > 0")],
     );
     // With other roads, a share in [0, 1] is accepted and one outside it
     // is refused by the range check.
