@@ -292,12 +292,6 @@ fn experiment_configs() {
             ("/policy/hidden", json!([0]), "train.policy"),
             ("/select_episodes", json!(0), "select_episodes"),
             ("/demo_starts", json!(-0.1), "demo_starts"),
-            // Default train_roads is 50: starts on the demo's road clash.
-            (
-                "/demo_starts",
-                json!(0.5),
-                "cannot be combined with train_roads",
-            ),
         ],
     );
     // On the demonstration's road alone (the paper's setting), a share of
