@@ -16,7 +16,9 @@
 //! update the policy term and the shift are absent and only `h1` is used.
 //! Each reward costs `O((n_expert + n_policy) * dim)`.
 
-use ndarray::{Array1, Array2, ArrayView1, ArrayView2};
+use std::sync::OnceLock;
+
+use ndarray::{Array1, Array2, ArrayView2};
 use serde::{Deserialize, Serialize};
 
 use red_core::RewardModel;
@@ -80,6 +82,12 @@ pub struct Gmmil {
     offset: f64,
     obs_dim: usize,
     act_dim: usize,
+    /// `expert` laid out by columns (see [`columns`]), built on first use.
+    #[serde(skip)]
+    expert_cols: OnceLock<Vec<f64>>,
+    /// The same for `policy`, reset at each update.
+    #[serde(skip)]
+    policy_cols: OnceLock<Vec<f64>>,
 }
 
 impl Gmmil {
@@ -126,6 +134,8 @@ impl Gmmil {
             offset: 0.0,
             obs_dim: expert_states.ncols(),
             act_dim: expert_actions.ncols(),
+            expert_cols: OnceLock::new(),
+            policy_cols: OnceLock::new(),
         })
     }
 
@@ -134,42 +144,49 @@ impl Gmmil {
         (self.h1, self.h2)
     }
 
-    fn kernel(&self, d2: f64) -> f64 {
-        let mut k = (-d2 / self.h1).exp();
-        if let Some(h2) = self.h2 {
-            k += (-d2 / h2).exp();
+    /// The expert pairs and the latest policy batch (if any), each as
+    /// columns with the weight of its mean in the witness.
+    fn sets(&self) -> Vec<(&[f64], f64)> {
+        let expert = self.expert_cols.get_or_init(|| columns(&self.expert));
+        let mut sets = vec![(expert.as_slice(), 1.0 / self.expert.nrows() as f64)];
+        if let Some(p) = &self.policy {
+            let cols = self.policy_cols.get_or_init(|| columns(p));
+            sets.push((cols.as_slice(), -1.0 / p.nrows() as f64));
         }
-        k
+        sets
     }
 
-    fn mean_kernel(&self, x: ArrayView1<'_, f64>, set: &Array2<f64>, d2: &mut Vec<f64>) -> f64 {
+    /// The witness of each row of `x` (offset not subtracted), and when
+    /// `grad` is given its gradient with respect to the action numbers.
+    fn witness(&self, x: &Array2<f64>, mut grad: Option<&mut Array2<f64>>) -> Array1<f64> {
         let x = x.as_standard_layout();
-        let set = set.as_standard_layout();
-        sq_dists(
-            x.as_slice().unwrap_or_default(),
-            set.as_slice().unwrap_or_default(),
-            d2,
-        );
-        let mut total = 0.0;
-        for &d in d2.iter() {
-            total += self.kernel(d);
+        let width = x.ncols();
+        let widths = Widths {
+            inv_h1: 1.0 / self.h1,
+            inv_h2: self.h2.map(|h| 1.0 / h),
+        };
+        let sets = self.sets();
+        let mut scratch = Scratch::default();
+        let mut g = vec![0.0; self.act_dim];
+        let rows = x.as_slice().unwrap_or_default().chunks_exact(width);
+        let mut r = Array1::zeros(x.nrows());
+        for (i, row) in rows.enumerate() {
+            for &(cols, scale) in &sets {
+                let want = grad.is_some().then_some(self.obs_dim);
+                let total = score_against(row, cols, widths, &mut scratch, want, &mut g);
+                r[i] += scale * total;
+                if let Some(grad) = grad.as_deref_mut() {
+                    for (a, v) in g.iter().enumerate() {
+                        grad[[i, a]] += scale * v;
+                    }
+                }
+            }
         }
-        total / set.nrows() as f64
+        r
     }
 
     fn raw_rewards(&self, x: &Array2<f64>) -> Array1<f64> {
-        let mut d2 = Vec::new();
-        x.rows()
-            .into_iter()
-            .map(|row| {
-                let e = self.mean_kernel(row, &self.expert, &mut d2);
-                let p = self
-                    .policy
-                    .as_ref()
-                    .map_or(0.0, |p| self.mean_kernel(row, p, &mut d2));
-                e - p
-            })
-            .collect()
+        self.witness(x, None)
     }
 
     fn pairs(
@@ -188,39 +205,191 @@ impl Gmmil {
     }
 }
 
-/// The squared distances from `x` to each row of `set` (rows of
-/// `x.len()` numbers, one after another), into `out` in row order. Each is
-/// summed over the dimensions in order, as a plain loop would, so the
-/// numbers are the same to the bit; four rows go at a time so that their
-/// sums overlap (a lone sum waits on its previous addition).
-fn sq_dists(x: &[f64], set: &[f64], out: &mut Vec<f64>) {
+/// The rows of `set` laid out by columns: column `k` (the `k`-th number of
+/// every row) is `out[k * n..(k + 1) * n]` for `n` rows, so that the loops
+/// over rows below read memory in order and vectorise.
+fn columns(set: &Array2<f64>) -> Vec<f64> {
+    set.t().iter().copied().collect()
+}
+
+/// The kernel's inverse widths: `1 / h1`, and `1 / h2` once set.
+#[derive(Clone, Copy)]
+struct Widths {
+    inv_h1: f64,
+    inv_h2: Option<f64>,
+}
+
+/// Scratch vectors of one scoring loop: squared distances, kernel values
+/// and gradient weights, one per set row.
+#[derive(Default)]
+struct Scratch {
+    d2: Vec<f64>,
+    k: Vec<f64>,
+    w: Vec<f64>,
+}
+
+/// Set rows per block of the distance loop (its sums stay in the L1 cache).
+const BLOCK: usize = 512;
+
+/// The squared distances from `x` to each of the `n` rows of a set given by
+/// columns (`cols.len() == x.len() * n`), into `out` in row order. Each
+/// row's sum adds its dimensions in order from 0, as the plain loop
+/// `sum_k (y_k - x_k)^2` does, so the numbers are the same to the bit
+/// whichever instructions the loop is compiled to.
+#[inline(always)]
+fn sq_dists_cols(x: &[f64], cols: &[f64], out: &mut Vec<f64>) {
+    let n = if x.is_empty() {
+        0
+    } else {
+        cols.len() / x.len()
+    };
     out.clear();
-    let dim = x.len();
-    debug_assert!(dim > 0, "GMMIL pairs have at least one number");
-    let mut blocks = set.chunks_exact(4 * dim);
-    for block in &mut blocks {
-        let (a, rest) = block.split_at(dim);
-        let (b, rest) = rest.split_at(dim);
-        let (c, d) = rest.split_at(dim);
-        let (mut s0, mut s1, mut s2, mut s3) = (0.0, 0.0, 0.0, 0.0);
-        for k in 0..dim {
-            let xk = x[k];
-            let (t0, t1, t2, t3) = (a[k] - xk, b[k] - xk, c[k] - xk, d[k] - xk);
-            s0 += t0 * t0;
-            s1 += t1 * t1;
-            s2 += t2 * t2;
-            s3 += t3 * t3;
+    out.resize(n, 0.0);
+    for (b, block) in out.chunks_mut(BLOCK).enumerate() {
+        let start = b * BLOCK;
+        for (k, &xk) in x.iter().enumerate() {
+            let col = &cols[k * n + start..k * n + start + block.len()];
+            for (o, &y) in block.iter_mut().zip(col) {
+                let t = y - xk;
+                *o += t * t;
+            }
         }
-        out.extend_from_slice(&[s0, s1, s2, s3]);
     }
-    for y in blocks.remainder().chunks_exact(dim) {
-        let mut s = 0.0;
-        for k in 0..dim {
-            let t = y[k] - x[k];
-            s += t * t;
+}
+
+/// The sum over a set's rows of the kernel of `x` with each row (given by
+/// columns); when `act_from` is `Some(o)`, also `grad[a] = sum_j
+/// d/dx_{o+a} k(x, y_j)` for the numbers of `x` from `o` on (the action).
+/// Compiled for AVX-512 and AVX2 as well, picked at run time; the results
+/// are the same numbers on every path (no fused multiply-adds).
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2+fma"))]
+fn score_against(
+    x: &[f64],
+    cols: &[f64],
+    widths: Widths,
+    scratch: &mut Scratch,
+    act_from: Option<usize>,
+    grad: &mut [f64],
+) -> f64 {
+    let Scratch { d2, k, w } = scratch;
+    sq_dists_cols(x, cols, d2);
+    let n = d2.len();
+    let i1 = widths.inv_h1;
+    k.clear();
+    k.resize(n, 0.0);
+    w.clear();
+    match (act_from.is_some(), widths.inv_h2) {
+        (true, Some(i2)) => {
+            w.resize(n, 0.0);
+            for ((k, w), &d) in k.iter_mut().zip(w.iter_mut()).zip(d2.iter()) {
+                let (e1, e2) = (exp_nonpositive(-d * i1), exp_nonpositive(-d * i2));
+                *k = e1 + e2;
+                *w = -2.0 * (e1 * i1 + e2 * i2);
+            }
         }
-        out.push(s);
+        (true, None) => {
+            w.resize(n, 0.0);
+            for ((k, w), &d) in k.iter_mut().zip(w.iter_mut()).zip(d2.iter()) {
+                let e1 = exp_nonpositive(-d * i1);
+                *k = e1;
+                *w = -2.0 * (e1 * i1);
+            }
+        }
+        (false, Some(i2)) => {
+            for (k, &d) in k.iter_mut().zip(d2.iter()) {
+                *k = exp_nonpositive(-d * i1) + exp_nonpositive(-d * i2);
+            }
+        }
+        (false, None) => {
+            for (k, &d) in k.iter_mut().zip(d2.iter()) {
+                *k = exp_nonpositive(-d * i1);
+            }
+        }
     }
+    if let Some(o) = act_from {
+        // d/dx exp(-|x-y|^2 / h) = -2 (x - y) / h exp(-|x-y|^2 / h)
+        for (a, g) in grad.iter_mut().enumerate() {
+            let col = &cols[(o + a) * n..(o + a + 1) * n];
+            *g = weighted_offsets(w, x[o + a], col);
+        }
+    }
+    sum4(k)
+}
+
+/// `exp(x)` for `x <= 0` (and not NaN), within 2 ulp of `f64::exp`, written
+/// so that a loop of it vectorises (no call, no branch): `x = n ln2 + r`
+/// with `|r| <= ln2 / 2` (`n` rounded by the 1.5 * 2^52 trick, `ln2` split
+/// in two so that `n ln2` is exact), `exp(r)` by its Taylor series to
+/// `r^13` (the rest is below 1e-17 relative), times `2^n` built in the
+/// exponent bits. Below -708 the argument is clamped: `exp(-708)` is 3e-308,
+/// nothing next to the kernel's other terms.
+#[inline(always)]
+fn exp_nonpositive(x: f64) -> f64 {
+    const ROUND: f64 = 6_755_399_441_055_744.0; // 1.5 * 2^52
+    // ln 2 in two parts: its leading 32 bits (so that n * LN2_HI is exact
+    // for |n| < 2^21), and the rest.
+    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
+    const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
+    let x = x.max(-708.0);
+    let t = x * std::f64::consts::LOG2_E + ROUND;
+    let n = t - ROUND;
+    let r = (x - n * LN2_HI) - n * LN2_LO;
+    let mut p = 1.0 / 6_227_020_800.0; // 1/13!
+    for c in [
+        1.0 / 479_001_600.0,
+        1.0 / 39_916_800.0,
+        1.0 / 3_628_800.0,
+        1.0 / 362_880.0,
+        1.0 / 40_320.0,
+        1.0 / 5_040.0,
+        1.0 / 720.0,
+        1.0 / 120.0,
+        1.0 / 24.0,
+        1.0 / 6.0,
+        0.5,
+        1.0,
+        1.0,
+    ] {
+        p = p * r + c;
+    }
+    // The low bits of `t` hold `n` (two's complement), which is in -1022..=0.
+    let n = t.to_bits().wrapping_sub(ROUND.to_bits()) as i64;
+    p * f64::from_bits(((n + 1023) as u64) << 52)
+}
+
+/// The sum of `xs` in four interleaved partial sums (so that the loop
+/// vectorises), added together at the end.
+#[inline(always)]
+fn sum4(xs: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let mut chunks = xs.chunks_exact(4);
+    for c in &mut chunks {
+        for (a, v) in acc.iter_mut().zip(c) {
+            *a += v;
+        }
+    }
+    let tail: f64 = chunks.remainder().iter().sum();
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
+/// `sum_j w_j (x - ys_j)`, in four interleaved partial sums.
+#[inline(always)]
+fn weighted_offsets(w: &[f64], x: f64, ys: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let mut wc = w.chunks_exact(4);
+    let mut yc = ys.chunks_exact(4);
+    for (a, b) in (&mut wc).zip(&mut yc) {
+        for i in 0..4 {
+            acc[i] += a[i] * (x - b[i]);
+        }
+    }
+    let tail: f64 = wc
+        .remainder()
+        .iter()
+        .zip(yc.remainder())
+        .map(|(a, b)| a * (x - b))
+        .sum();
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// Median squared distance between rows of `a` and rows of `b` (distinct
@@ -266,42 +435,8 @@ impl Gmmil {
         actions: ArrayView2<'_, f64>,
     ) -> Result<(Array1<f64>, Array2<f64>)> {
         let x = self.pairs(states, actions)?;
-        let (n, o) = (x.nrows(), self.obs_dim);
-        let width = x.ncols();
-        let mut r = Array1::zeros(n);
-        let mut g = Array2::zeros((n, self.act_dim));
-        let mut grad = vec![0.0; self.act_dim];
-        let mut d2 = Vec::new();
-        let expert = self.expert.as_standard_layout();
-        let policy = self.policy.as_ref().map(|p| p.as_standard_layout());
-        let sets = [Some((&expert, 1.0)), policy.as_ref().map(|p| (p, -1.0))];
-        for (i, row) in x.rows().into_iter().enumerate() {
-            let row = row.as_standard_layout();
-            let row = row.as_slice().unwrap_or_default();
-            for (set, sign) in sets.iter().flatten() {
-                let ys = set.as_slice().unwrap_or_default();
-                sq_dists(row, ys, &mut d2);
-                let scale = sign / set.nrows() as f64;
-                grad.iter_mut().for_each(|v| *v = 0.0);
-                let mut total = 0.0;
-                for (y, &d) in ys.chunks_exact(width).zip(d2.iter()) {
-                    let mut dk = 0.0;
-                    for h in std::iter::once(self.h1).chain(self.h2) {
-                        let k = (-d / h).exp();
-                        total += k;
-                        dk -= 2.0 * k / h;
-                    }
-                    for (j, gj) in grad.iter_mut().enumerate() {
-                        *gj += dk * (row[o + j] - y[o + j]);
-                    }
-                }
-                r[i] += scale * total;
-                for (j, gj) in grad.iter().enumerate() {
-                    g[[i, j]] += scale * gj;
-                }
-            }
-            r[i] -= self.offset;
-        }
+        let mut g = Array2::zeros((x.nrows(), self.act_dim));
+        let r = self.witness(&x, Some(&mut g)) - self.offset;
         Ok((r, g))
     }
 }
@@ -353,6 +488,7 @@ impl RewardModel for Gmmil {
             ));
         }
         self.policy = Some(x.clone());
+        self.policy_cols = OnceLock::new();
         let raw = self.raw_rewards(&x);
         self.offset = raw.iter().copied().fold(f64::INFINITY, f64::min);
         Ok(())
@@ -424,6 +560,50 @@ mod tests {
     }
 
     #[test]
+    fn witness_matches_the_formula_written_plainly() {
+        let es = Array2::from_shape_fn((700, 3), |(i, j)| (i as f64 * 0.37 + j as f64).sin());
+        let ea = Array2::from_shape_fn((700, 2), |(i, j)| (i as f64 * 0.11 - j as f64).cos());
+        let ps = Array2::from_shape_fn((530, 3), |(i, j)| (i as f64 * 0.53 + 2.0 * j as f64).cos());
+        let pa = Array2::from_shape_fn((530, 2), |(i, j)| (i as f64 * 0.29 + j as f64).sin());
+        let mut g = Gmmil::new(GmmilConfig::default(), es.view(), ea.view()).unwrap();
+        let plain = |g: &Gmmil, s: &Array2<f64>, a: &Array2<f64>| -> Vec<f64> {
+            let (h1, h2) = g.bandwidths();
+            let k = |x: &[f64], y: &[f64]| {
+                let d: f64 = x.iter().zip(y).map(|(p, q)| (p - q) * (p - q)).sum();
+                (-d / h1).exp() + h2.map_or(0.0, |h2| (-d / h2).exp())
+            };
+            let x = concat_pairs(s.view(), a.view()).unwrap();
+            let e = concat_pairs(es.view(), ea.view()).unwrap();
+            let p = g.policy.clone();
+            x.rows()
+                .into_iter()
+                .map(|r| {
+                    let r = r.to_vec();
+                    let mean = |set: &Array2<f64>| {
+                        set.rows()
+                            .into_iter()
+                            .map(|y| k(&r, &y.to_vec()))
+                            .sum::<f64>()
+                            / set.nrows() as f64
+                    };
+                    mean(&e) - p.as_ref().map_or(0.0, mean) - g.offset
+                })
+                .collect()
+        };
+        for updated in [false, true] {
+            if updated {
+                g.update(ps.view(), pa.view()).unwrap();
+            }
+            let got = g.rewards(ps.view(), pa.view()).unwrap();
+            let (with_grad, _) = g.reward_and_grad(ps.view(), pa.view()).unwrap();
+            for ((x, y), z) in got.iter().zip(plain(&g, &ps, &pa)).zip(&with_grad) {
+                assert!((x - y).abs() < 1e-12, "{x} vs {y} (updated: {updated})");
+                assert_eq!(x.to_bits(), z.to_bits());
+            }
+        }
+    }
+
+    #[test]
     fn median_rule_matches_hand_computation() {
         // Points 0, 1, 3: squared distances 1, 9, 4 -> median 4.
         let e = Array2::from_shape_vec((3, 1), vec![0.0, 1.0, 3.0]).unwrap();
@@ -433,17 +613,18 @@ mod tests {
     }
 
     #[test]
-    fn blocked_distances_are_the_plain_loop_to_the_bit() {
+    fn column_distances_are_the_plain_loop_to_the_bit() {
         use rand::{RngExt, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let mut out = Vec::new();
         for dim in [1, 2, 3, 7, 24] {
-            for rows in 0..10 {
+            for rows in [0, 1, 2, 3, 5, 9, 511, 512, 513, 1100] {
                 let x: Vec<f64> = (0..dim).map(|_| rng.random_range(-3.0..3.0)).collect();
                 let set: Vec<f64> = (0..rows * dim)
                     .map(|_| rng.random_range(-3.0..3.0) * 1e3_f64.powi(rng.random_range(-2..3)))
                     .collect();
-                sq_dists(&x, &set, &mut out);
+                let m = Array2::from_shape_vec((rows, dim), set.clone()).unwrap();
+                sq_dists_cols(&x, &columns(&m), &mut out);
                 let plain: Vec<f64> = set
                     .chunks_exact(dim)
                     .map(|y| y.iter().zip(&x).map(|(a, b)| (a - b) * (a - b)).sum())
@@ -453,6 +634,50 @@ mod tests {
                     assert_eq!(a.to_bits(), b.to_bits(), "dim {dim} rows {rows}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn vectorisable_exp_is_within_two_ulp_of_std() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let ulp = |v: f64| f64::from_bits(v.to_bits() + 1) - v;
+        let mut xs: Vec<f64> = (0..200_000)
+            .map(|_| -rng.random_range(0.0..708.0))
+            .collect();
+        xs.extend((0..100_000).map(|_| -rng.random_range(0.0..1.0_f64).powi(8)));
+        xs.extend([
+            0.0,
+            -0.0,
+            -1e-300,
+            -f64::MIN_POSITIVE,
+            -0.5 * std::f64::consts::LN_2,
+            -708.0,
+        ]);
+        for x in xs {
+            let (got, want) = (exp_nonpositive(x), x.exp());
+            assert!(
+                (got - want).abs() <= 2.0 * ulp(want),
+                "exp({x}): {got} vs {want}"
+            );
+        }
+        assert_eq!(exp_nonpositive(0.0), 1.0);
+        // Clamped below -708: tiny, never negative, never NaN.
+        for x in [-709.0, -1e6, f64::NEG_INFINITY] {
+            let v = exp_nonpositive(x);
+            assert!((0.0..1e-300).contains(&v), "exp({x}) gave {v}");
+        }
+    }
+
+    #[test]
+    fn four_lane_sums_match_plain_sums() {
+        let xs: Vec<f64> = (0..37).map(|i| (i as f64 * 0.7).sin()).collect();
+        let ys: Vec<f64> = (0..37).map(|i| (i as f64 * 0.3).cos()).collect();
+        for n in 0..xs.len() {
+            let plain: f64 = xs[..n].iter().sum();
+            assert!((sum4(&xs[..n]) - plain).abs() < 1e-12);
+            let plain: f64 = (0..n).map(|j| xs[j] * (0.25 - ys[j])).sum();
+            assert!((weighted_offsets(&xs[..n], 0.25, &ys[..n]) - plain).abs() < 1e-12);
         }
     }
 
