@@ -14,11 +14,17 @@ use crate::progress::Bar;
 /// does and where its default comes from).
 #[derive(Debug, Clone, Args)]
 pub struct ToyArgs {
-    /// Name of the run: outputs go to `<runs-dir>/<name>/`.
+    /// Name of the run: outputs go to `<out-dir>/<name>/`.
     #[arg(long, default_value = "toy")]
     pub name: String,
-    /// Folder holding runs.
-    #[arg(long, default_value = "runs")]
+    /// Folder of the runs (`--out-dir`, as for `drive` and `mujoco`;
+    /// `--runs-dir` is its earlier name).
+    #[arg(
+        long = "out-dir",
+        visible_alias = "runs-dir",
+        value_name = "OUT_DIR",
+        default_value = "runs"
+    )]
     pub runs_dir: PathBuf,
     /// Expert-set sizes (the paper's 5, 10, 50, 100).
     #[arg(long, value_delimiter = ',', default_value = "5,10,50,100")]

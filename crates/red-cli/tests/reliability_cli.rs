@@ -517,7 +517,7 @@ fn zero_valued_flags_are_refused_naming_the_flag() {
         (vec!["--eval-interval", "0"], "--eval-interval"),
     ] {
         let o = red()
-            .args(["toy", "--quiet", "--name", "zero", "--runs-dir"])
+            .args(["toy", "--quiet", "--name", "zero", "--out-dir"])
             .arg(dir.path())
             .args(&args)
             .output()
