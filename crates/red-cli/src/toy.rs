@@ -17,15 +17,9 @@ pub struct ToyArgs {
     /// Name of the run: outputs go to `<out-dir>/<name>/`.
     #[arg(long, default_value = "toy")]
     pub name: String,
-    /// Folder of the runs (`--out-dir`, as for `drive` and `mujoco`;
-    /// `--runs-dir` is its earlier name).
-    #[arg(
-        long = "out-dir",
-        visible_alias = "runs-dir",
-        value_name = "OUT_DIR",
-        default_value = "runs"
-    )]
-    pub runs_dir: PathBuf,
+    /// Folder of the runs (`--runs-dir` is its earlier name).
+    #[arg(long, visible_alias = "runs-dir", default_value = "runs")]
+    pub out_dir: PathBuf,
     /// Expert-set sizes (the paper's 5, 10, 50, 100).
     #[arg(long, value_delimiter = ',', default_value = "5,10,50,100")]
     pub n: Vec<usize>,
@@ -118,7 +112,7 @@ pub fn run(args: ToyArgs) -> anyhow::Result<()> {
             let config = args.config();
             config.validate().map_err(crate::flag_error)?;
             let force = args.force.into();
-            let dir = red_experiments::RunDir::create_with(&args.runs_dir, &args.name, force)?;
+            let dir = red_experiments::RunDir::create_with(&args.out_dir, &args.name, force)?;
             let outcome = toy::run_new(config, dir, threads, interrupt::flag(), &mut bar);
             outcome.map_err(crate::flag_error)?
         }
