@@ -181,6 +181,19 @@ pub struct DriveTrainConfig {
     /// expert-like driving on roads the demonstration never saw. Every
     /// method's reward, the warm start and the BC term see both.
     pub mirror_demos: bool,
+    /// Start noise of the training episodes' lateral offset (our addition):
+    /// each training episode starts `U(-this, this)` metres off the lane's
+    /// centre instead of the road's `start_lateral_noise` (0.3 m), so the
+    /// learner practises recovering from a wider spread of starts. `None`
+    /// (the default) keeps the road's; checks and evaluations always keep
+    /// it. Must stay below half the lane's free width (0.85 m by default).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub train_start_lateral_noise: Option<f64>,
+    /// Start noise of the training episodes' heading in radians, as
+    /// `train_start_lateral_noise` (the road's `start_heading_noise` is
+    /// 0.03). `None` (the default) keeps the road's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub train_start_heading_noise: Option<f64>,
 }
 
 impl Default for DriveTrainConfig {
@@ -293,6 +306,8 @@ impl Default for DriveTrainConfig {
             demo_road_share: 0.0,
             demo_starts: 0.0,
             mirror_demos: false,
+            train_start_lateral_noise: None,
+            train_start_heading_noise: None,
         }
     }
 }
@@ -492,6 +507,25 @@ impl DriveTrainConfig {
                     .into(),
             ));
         }
+        for (field, v) in [
+            (
+                "train.train_start_lateral_noise",
+                self.train_start_lateral_noise,
+            ),
+            (
+                "train.train_start_heading_noise",
+                self.train_start_heading_noise,
+            ),
+        ] {
+            if let Some(v) = v
+                && !(v.is_finite() && v >= 0.0)
+            {
+                return Err(invalid(
+                    field,
+                    format!("must be a finite number >= 0 (or absent: the road's own), got {v}"),
+                ));
+            }
+        }
         if self.select_every > 0 && self.select_episodes == 0 {
             return Err(invalid(
                 "train.select_episodes",
@@ -551,7 +585,10 @@ impl DriveRunConfig {
             return Err(invalid("eval_runs", "must be at least 1".into()));
         }
         self.drive.validate().with_context(|| "drive")?;
-        self.train.validate()
+        self.train.validate()?;
+        training_road(&self.drive, &self.train)
+            .validate()
+            .with_context(|| "train.train_start_lateral_noise / train.train_start_heading_noise")
     }
 
     /// The track seeds of the unseen roads.
@@ -1350,6 +1387,20 @@ impl EpisodeHooks<Learner, ChaCha8Rng> for MethodHooks<'_> {
     }
 }
 
+/// The road settings of the training episodes: the run's, with the
+/// training start noise of `cfg` where it sets one.
+fn training_road(drive: &DriveConfig, cfg: &DriveTrainConfig) -> DriveConfig {
+    DriveConfig {
+        start_lateral_noise: cfg
+            .train_start_lateral_noise
+            .unwrap_or(drive.start_lateral_noise),
+        start_heading_noise: cfg
+            .train_start_heading_noise
+            .unwrap_or(drive.start_heading_noise),
+        ..drive.clone()
+    }
+}
+
 /// Why training stopped.
 enum Stop {
     Done,
@@ -1367,7 +1418,7 @@ fn train_method(
     progress: &mut dyn Progress,
 ) -> Result<Stop> {
     let cfg = &run.train;
-    let mut env = make_env(&run.drive)?;
+    let mut env = make_env(&training_road(&run.drive, cfg))?;
     env.inner_mut()
         .set_road_pool(TRAIN_FIRST_TRACK_SEED, cfg.train_roads);
     env.inner_mut()
@@ -2124,6 +2175,32 @@ mod tests {
         let e = flags.config(Path::new("d.json"), DriveConfig::default());
         let e = e.unwrap_err().to_string();
         assert!(e.contains("gama") && e.contains("t.json"), "{e}");
+    }
+
+    #[test]
+    fn training_start_noise_changes_the_training_road_only_and_is_checked() {
+        let mut c = DriveRunConfig::new("x.json", DriveConfig::default());
+        // Absent: the training road is the run's, and config.json says nothing of it.
+        assert_eq!(training_road(&c.drive, &c.train), c.drive);
+        let json = serde_json::to_string(&c.train).unwrap();
+        assert!(!json.contains("train_start"), "{json}");
+        c.train.train_start_lateral_noise = Some(0.8);
+        c.train.train_start_heading_noise = Some(0.06);
+        c.validate().unwrap();
+        let t = training_road(&c.drive, &c.train);
+        assert_eq!((t.start_lateral_noise, t.start_heading_noise), (0.8, 0.06));
+        assert_eq!(t.track_seed, c.drive.track_seed);
+        assert_eq!(c.drive.start_lateral_noise, 0.3);
+        // Wider than the lane allows: refused before any training, naming the field.
+        c.train.train_start_lateral_noise = Some(0.9);
+        let e = format!("{:#}", c.validate().unwrap_err());
+        assert!(
+            e.contains("train_start_lateral_noise") && e.contains("0.85"),
+            "{e}"
+        );
+        c.train.train_start_lateral_noise = Some(f64::NAN);
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("train.train_start_lateral_noise"), "{e}");
     }
 
     #[test]
