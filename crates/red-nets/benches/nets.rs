@@ -121,5 +121,32 @@ fn policy_forward(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, rnd_fit, rnd_target_forward, policy_forward);
+/// (d) A Polyak step of a network of driving's SVG(1)-ER value size (24
+/// inputs, 100 x 100, 1 output) toward another: in place
+/// (`Mlp::polyak_toward`, what the learners run since session 34) against
+/// copying the parameters out, averaging, and writing them back (what they
+/// ran before; the same numbers).
+fn polyak(c: &mut Criterion) {
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let cfg = MlpConfig::new(24, &[100, 100], 1);
+    let source = Mlp::new(&cfg, &mut rng).unwrap();
+    let mut target = Mlp::new(&cfg, &mut rng).unwrap();
+    let mut g = group(c, "polyak_value_net", 1);
+    g.bench_function("in_place", |b| {
+        b.iter(|| target.polyak_toward(black_box(&source), 0.01).unwrap())
+    });
+    g.bench_function("flat_copies", |b| {
+        b.iter(|| {
+            let p = black_box(&source).params_flat();
+            let mut t = target.params_flat();
+            for (ti, pi) in t.iter_mut().zip(&p) {
+                *ti += 0.01 * (pi - *ti);
+            }
+            target.set_params_flat(&t).unwrap();
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, rnd_fit, rnd_target_forward, policy_forward, polyak);
 criterion_main!(benches);

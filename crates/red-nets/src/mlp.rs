@@ -524,6 +524,64 @@ impl Mlp {
         Ok(())
     }
 
+    /// Moves every parameter a share `tau` of the way toward `source`'s,
+    /// in place: `θ ← θ + τ (θ_source − θ)` (the Polyak average of target
+    /// networks and averaged policies). The same arithmetic as doing it on
+    /// [`Mlp::params_flat`] and writing back, without the copies.
+    ///
+    /// # Errors
+    /// [`Error::ShapeMismatch`] when `source`'s layers differ in number or
+    /// shape (nothing is changed), [`Error::NonFinite`] when a parameter
+    /// becomes NaN or infinite.
+    pub fn polyak_toward(&mut self, source: &Mlp, tau: f32) -> Result<()> {
+        let shapes = |m: &Mlp| {
+            m.layers
+                .iter()
+                .map(|l| (l.w.dim(), l.b.len()))
+                .collect::<Vec<_>>()
+        };
+        if shapes(self) != shapes(source) {
+            return Err(Error::shape(
+                "Mlp::polyak_toward source layers",
+                format!("{:?}", shapes(self)),
+                format!("{:?}", shapes(source)),
+            ));
+        }
+        // Plain slices where the arrays are in standard layout (they are,
+        // as built and as loaded), so that the loop vectorises; the element
+        // iterators otherwise. A value is non-finite when its exponent bits
+        // are all set: OR-ing that test into an integer keeps the loop free
+        // of branches.
+        fn step<D: ndarray::Dimension>(
+            t: &mut ndarray::Array<f32, D>,
+            s: &ndarray::Array<f32, D>,
+            tau: f32,
+        ) -> u32 {
+            const EXP: u32 = 0x7f80_0000;
+            let mut bad = 0u32;
+            let mut one = |ti: &mut f32, si: f32| {
+                *ti += tau * (si - *ti);
+                bad |= u32::from(ti.to_bits() & EXP == EXP);
+            };
+            match (t.as_slice_mut(), s.as_slice()) {
+                (Some(ta), Some(sa)) => ta.iter_mut().zip(sa).for_each(|(ti, si)| one(ti, *si)),
+                _ => t.zip_mut_with(s, |ti, si| one(ti, *si)),
+            }
+            bad
+        }
+        let mut bad = 0u32;
+        for (t, s) in self.layers.iter_mut().zip(&source.layers) {
+            bad |= step(&mut t.w, &s.w, tau) | step(&mut t.b, &s.b, tau);
+        }
+        let finite = bad == 0;
+        if !finite {
+            return Err(Error::NonFinite {
+                what: "Mlp::polyak_toward parameters".into(),
+            });
+        }
+        Ok(())
+    }
+
     /// Mutable access to the layers, for optimisers in this crate. Shapes
     /// must not change.
     pub(crate) fn layers_mut(&mut self) -> &mut [Layer] {
@@ -749,6 +807,31 @@ impl Gradients {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn polyak_toward_matches_the_flat_update_and_checks_shapes() {
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let cfg = MlpConfig::new(3, &[5, 4], 2);
+        let src = Mlp::new(&cfg, &mut rng).unwrap();
+        let mut a = Mlp::new(&cfg, &mut rng).unwrap();
+        let mut b = a.clone();
+        a.polyak_toward(&src, 0.01).unwrap();
+        let (p, mut t) = (src.params_flat(), b.params_flat());
+        for (ti, pi) in t.iter_mut().zip(&p) {
+            *ti += 0.01 * (pi - *ti);
+        }
+        b.set_params_flat(&t).unwrap();
+        assert_eq!(a, b);
+        let mut c = src.clone();
+        c.polyak_toward(&src, 0.5).unwrap();
+        assert_eq!(c, src);
+        let other = MlpConfig::new(3, &[5], 2);
+        let mut d = Mlp::new(&other, &mut rng).unwrap();
+        let before = d.clone();
+        assert!(d.polyak_toward(&src, 0.1).is_err());
+        assert_eq!(d, before);
+    }
 
     /// The copy of the tanh loop picked at run time (AVX-512 or AVX2 where
     /// the CPU has them) gives the same bits as the scalar formula.

@@ -272,16 +272,6 @@ fn q_input(x: ArrayView2<'_, f32>, a: ArrayView2<'_, f64>) -> Array2<f32> {
     concatenate(Axis(1), &[x, a.mapv(|v| v as f32).view()]).expect("same number of rows")
 }
 
-fn polyak(target: &mut Mlp, source: &Mlp, tau: f32) -> Result<()> {
-    let p = source.params_flat();
-    let mut t = target.params_flat();
-    for (ti, pi) in t.iter_mut().zip(&p) {
-        *ti += tau * (pi - *ti);
-    }
-    target.set_params_flat(&t)?;
-    Ok(())
-}
-
 impl Sac {
     /// A learner improving `policy` (which must have `squash` on), with
     /// fresh Q networks initialised from `rng`.
@@ -519,8 +509,8 @@ impl Sac {
             total += loss as f64 / 2.0;
         }
         let tau = self.config.tau as f32;
-        polyak(&mut self.q1_target, &self.q1, tau)?;
-        polyak(&mut self.q2_target, &self.q2, tau)?;
+        self.q1_target.polyak_toward(&self.q1, tau)?;
+        self.q2_target.polyak_toward(&self.q2, tau)?;
         Ok(total)
     }
 

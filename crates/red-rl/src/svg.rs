@@ -618,13 +618,8 @@ impl Svg1 {
         self.value.backward_params(&tape, g.view(), &mut grads);
         clip_grad_norm(&mut grads, self.config.max_grad_norm);
         self.value_opt.step(&mut self.value, &grads)?;
-        let tau = self.config.target_tau as f32;
-        let p = self.value.params_flat();
-        let mut t = self.value_target.params_flat();
-        for (ti, pi) in t.iter_mut().zip(&p) {
-            *ti += tau * (pi - *ti);
-        }
-        self.value_target.set_params_flat(&t)?;
+        self.value_target
+            .polyak_toward(&self.value, self.config.target_tau as f32)?;
         Ok(loss)
     }
 
@@ -790,13 +785,8 @@ impl Svg1 {
         }
         self.policy_opt.step(self.policy.net_mut(), &grads)?;
         if let Some(avg) = self.avg_policy.as_mut() {
-            let tau = self.config.policy_avg_tau as f32;
-            let p = self.policy.net().params_flat();
-            let mut t = avg.net().params_flat();
-            for (ti, pi) in t.iter_mut().zip(&p) {
-                *ti += tau * (pi - *ti);
-            }
-            avg.net_mut().set_params_flat(&t)?;
+            avg.net_mut()
+                .polyak_toward(self.policy.net(), self.config.policy_avg_tau as f32)?;
         }
         Ok(obj)
     }
