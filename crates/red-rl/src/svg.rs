@@ -102,6 +102,15 @@ pub struct SvgConfig {
     /// after every policy update (0: no averaged copy). The averaged policy
     /// is what [`Svg1::reported_policy`] returns.
     pub policy_avg_tau: f64,
+    /// From this environment step on, the averaged copy is the plain mean
+    /// of the policies after each policy update since then (Polyak-Ruppert
+    /// averaging; stochastic weight averaging, Izmailov et al. 2018) instead
+    /// of the exponential average of `policy_avg_tau`, which it replaces
+    /// from that step (before it, `policy_avg_tau` applies when > 0). Our
+    /// addition, added in session 37 and not yet measured on any task.
+    /// `None`: off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub policy_avg_uniform_from: Option<u64>,
     /// Whether value and policy updates weight replayed transitions by the
     /// truncated importance weight (SVG(1)-ER as in Heess et al.: true).
     pub importance_weights: bool,
@@ -152,6 +161,7 @@ impl Default for SvgConfig {
             policy_lr_final: None,
             schedule_steps: 0,
             policy_avg_tau: 0.0,
+            policy_avg_uniform_from: None,
             importance_weights: true,
             bc_weight: 0.0,
             noise_rho: 0.0,
@@ -308,6 +318,9 @@ pub struct Svg1 {
     /// Polyak-averaged policy (when `policy_avg_tau > 0`).
     #[serde(default)]
     avg_policy: Option<GaussianPolicy>,
+    /// Policy updates averaged uniformly so far (`policy_avg_uniform_from`).
+    #[serde(default)]
+    avg_count: u64,
     /// Demonstration pairs for `bc_weight`.
     #[serde(default)]
     demos: Option<(Array2<f64>, Array2<f64>)>,
@@ -367,8 +380,10 @@ impl Svg1 {
         let policy_opt = Adam::new(AdamConfig::with_lr(config.policy_lr), policy.net())?;
         let model_opt = Adam::new(AdamConfig::with_lr(config.model_lr), &model)?;
         let value_opt = Adam::new(AdamConfig::with_lr(config.value_lr), &value)?;
-        let avg_policy = (config.policy_avg_tau > 0.0).then(|| policy.clone());
+        let avg_policy = (config.policy_avg_tau > 0.0 || config.policy_avg_uniform_from.is_some())
+            .then(|| policy.clone());
         Ok(Self {
+            avg_count: 0,
             demos: None,
             sil: Vec::new(),
             avg_policy,
@@ -400,10 +415,14 @@ impl Svg1 {
         &mut self.policy
     }
 
-    /// The policy to report: the Polyak-averaged one when
-    /// `policy_avg_tau > 0`, else the current one.
+    /// The policy to report: the averaged one when `policy_avg_tau > 0` or
+    /// once the uniform average of `policy_avg_uniform_from` has started,
+    /// else the current one.
     pub fn reported_policy(&self) -> &GaussianPolicy {
-        self.avg_policy.as_ref().unwrap_or(&self.policy)
+        match &self.avg_policy {
+            Some(avg) if self.config.policy_avg_tau > 0.0 || self.avg_count > 0 => avg,
+            _ => &self.policy,
+        }
     }
 
     /// The fixed standard deviation at the current step, if any.
@@ -785,8 +804,21 @@ impl Svg1 {
         }
         self.policy_opt.step(self.policy.net_mut(), &grads)?;
         if let Some(avg) = self.avg_policy.as_mut() {
-            avg.net_mut()
-                .polyak_toward(self.policy.net(), self.config.policy_avg_tau as f32)?;
+            let uniform = self
+                .config
+                .policy_avg_uniform_from
+                .is_some_and(|from| self.env_steps >= from);
+            // The n-th policy of the uniform mean enters with weight 1/n
+            // (the first replaces whatever the copy held).
+            let tau = if uniform {
+                self.avg_count += 1;
+                1.0 / self.avg_count as f64
+            } else {
+                self.config.policy_avg_tau
+            };
+            if tau > 0.0 {
+                avg.net_mut().polyak_toward(self.policy.net(), tau as f32)?;
+            }
         }
         Ok(obj)
     }

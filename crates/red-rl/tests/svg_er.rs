@@ -718,3 +718,49 @@ fn self_imitation_keeps_the_best_own_returns() {
         "episodes before the policy moves differ"
     );
 }
+
+#[test]
+fn uniform_average_is_the_mean_of_the_policies_since_its_start() {
+    let config = SvgConfig {
+        policy_avg_tau: 0.3,
+        policy_avg_uniform_from: Some(50),
+        ..small_config()
+    };
+    let (mut svg, mut rng) = fresh(4, &config);
+    let mut env = Reach::default();
+    // 60 steps: replay for the updates below, and no policy update yet
+    // (updates start after learning_starts + policy_delay = 100 steps).
+    svg.train(
+        &mut env,
+        &ReachReward,
+        60,
+        None,
+        &|_| 0.0,
+        &mut rng,
+        &mut |_| {},
+    )
+    .unwrap();
+    // The exponential average of tau 0.3 is over: the copy is reported but
+    // still the start's policy.
+    assert_eq!(svg.reported_policy(), svg.policy());
+    let mut sum = vec![0.0f64; svg.policy().net().params_flat().len()];
+    let updates = 7;
+    for _ in 0..updates {
+        svg.update(&ReachReward, true, &mut rng).unwrap();
+        for (s, p) in sum.iter_mut().zip(svg.policy().net().params_flat()) {
+            *s += p as f64;
+        }
+    }
+    assert_ne!(svg.reported_policy(), svg.policy());
+    let avg = svg.reported_policy().net().params_flat();
+    for (a, s) in avg.iter().zip(&sum) {
+        let mean = s / updates as f64;
+        assert!(
+            (*a as f64 - mean).abs() <= 1e-5 * (1.0 + mean.abs()),
+            "{a} vs {mean}"
+        );
+    }
+    // Without a uniform start and with tau 0, there is no averaged copy.
+    let (svg, _) = fresh(4, &small_config());
+    assert_eq!(svg.reported_policy(), svg.policy());
+}
