@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
-"""drive_paired.py RUNS_DIR NAME [SEEDS]: RED's final-policy table of the runs
-RUNS_DIR/NAME-DEMO-sK (DEMO: scripted, s11, s23, s37; made by `red-cli drive --demo D
---methods red --seed K --name NAME-DEMO-sK --out-dir RUNS_DIR --train-config C`) and its
-paired difference
-against the session-32 default (docs/results/drive.md, the table "The defaults since
-session 32"), as session 34 computed them. SEEDS: "0 1 2 3 4" by default."""
+"""drive_paired.py RUNS_DIR NAME [SEEDS] [METHOD]: a method's final-policy table of the
+runs RUNS_DIR/NAME-DEMO-sK (DEMO: scripted, s11, s23, s37; made by `red-cli drive --demo D
+--methods METHOD --seed K --name NAME-DEMO-sK --out-dir RUNS_DIR --train-config C`) and its
+paired difference against the same method at the session-32 defaults (docs/results/drive.md,
+"The defaults since session 32": RED on seeds 0-9, AE, GAIL and GMMIL on seeds 0-4), as
+sessions 34 and 35 computed them. SEEDS: "0 1 2 3 4" by default; METHOD: red (default), ae,
+gail or gmmil."""
 import json, os, sys, math
 D = {  # (demo road per seed 0-9, unseen per seed 0-9)
  "scripted": ([100.0,100.0,100.0,100.0,84.0,70.9,61.5,100.0,64.9,100.0],[54.4,90.8,96.3,92.5,70.9,35.1,57.2,75.4,37.8,94.8]),
@@ -12,7 +13,25 @@ D = {  # (demo road per seed 0-9, unseen per seed 0-9)
  "s23": ([100.0,65.7,100.0,80.8,100.0,80.6,100.0,73.3,100.0,100.0],[92.5,70.8,63.5,63.4,92.6,69.6,83.4,82.7,76.5,92.0]),
  "s37": ([100.0,44.5,100.0,82.0,63.0,100.0,100.0,81.6,100.0,100.0],[100.0,44.6,73.9,91.2,61.9,100.0,100.0,50.9,100.0,87.8]),
 }
+# The other methods at the session-32 defaults, seeds 0-4 (GMMIL: session 33).
+BASE = {
+ "ae": {"scripted": ([81.5,100.0,100.0,100.0,58.9],[57.5,96.3,57.3,47.4,44.0]),
+        "s11": ([94.9,100.0,76.0,95.4,77.1],[46.0,56.5,29.3,49.7,28.2]),
+        "s23": ([67.3,72.4,82.7,51.8,51.8],[71.0,69.8,87.1,61.0,49.3]),
+        "s37": ([81.5,100.0,100.0,100.0,84.6],[83.6,34.1,71.4,15.8,31.0])},
+ "gail": {"scripted": ([100.0,14.0,100.0,61.5,100.0],[89.8,12.4,67.9,52.1,47.1]),
+          "s11": ([16.0,41.0,61.6,37.0,47.5],[40.8,27.1,51.9,31.4,39.1]),
+          "s23": ([52.3,59.3,61.6,26.9,79.8],[57.1,69.2,50.1,44.3,51.2]),
+          "s37": ([69.3,50.1,100.0,100.0,97.1],[18.9,22.3,15.0,15.8,16.1])},
+ "gmmil": {"scripted": ([66.7,100.0,100.0,31.6,87.2],[42.2,55.4,31.4,22.3,39.7]),
+           "s11": ([28.7,67.8,83.8,77.9,66.9],[31.9,39.4,32.9,36.4,47.1]),
+           "s23": ([21.5,80.8,21.3,68.0,42.4],[54.5,74.6,52.6,65.3,68.0]),
+           "s37": ([100.0,100.0,81.5,100.0,81.5],[17.6,15.8,15.2,15.8,15.2])},
+}
 root, name = sys.argv[1], sys.argv[2]
+method = sys.argv[4] if len(sys.argv) > 4 else "red"
+if method != "red":
+    D = BASE[method]
 seeds = [int(s) for s in (sys.argv[3] if len(sys.argv) > 3 else "0 1 2 3 4").split()]
 dr, du, dd, ddu, n90, n90d = [], [], [], [], 0, 0
 print(f"| setting | demo | seeds | % demo road | mean | worst | % unseen roads | mean |")
@@ -23,7 +42,7 @@ for demo, (road, unseen) in D.items():
         if not os.path.exists(p):
             r.append(None); u.append(None); continue
         e = json.load(open(p))
-        m = [m for m in e["methods"] if m["method"] == "red"][0]["final_policy"]
+        m = [m for m in e["methods"] if m["method"] == method][0]["final_policy"]
         r.append(m["percent_of_road"]); u.append(m["unseen_roads"]["percent_of_road"])
     done = [i for i, x in enumerate(r) if x is not None]
     f = lambda xs: ", ".join("-" if x is None else f"{x:.1f}" for x in xs)
