@@ -140,6 +140,21 @@ fn fresh(seed: u64, config: &SvgConfig) -> (Svg1, ChaCha8Rng) {
     (svg, rng)
 }
 
+/// `steps` of training on Reach with no hooks.
+fn train_plain(svg: &mut Svg1, steps: u64, rng: &mut ChaCha8Rng) {
+    let mut env = Reach::default();
+    svg.train(
+        &mut env,
+        &ReachReward,
+        steps,
+        None,
+        &|_| 0.0,
+        rng,
+        &mut |_| {},
+    )
+    .unwrap();
+}
+
 #[test]
 fn policy_gradient_matches_finite_differences() {
     let config = SvgConfig {
@@ -150,17 +165,7 @@ fn policy_gradient_matches_finite_differences() {
     };
     let (mut svg, mut rng) = fresh(3, &config);
     // Some data, and a few model/value steps so both are non-trivial.
-    let mut env = Reach::default();
-    svg.train(
-        &mut env,
-        &ReachReward,
-        60,
-        None,
-        &|_| 0.0,
-        &mut rng,
-        &mut |_| {},
-    )
-    .unwrap();
+    train_plain(&mut svg, 60, &mut rng);
     let batch = svg.sample(16, &mut rng).unwrap();
     let inputs = svg.policy_inputs(&batch).unwrap();
     // At the current parameters the inferred noise reproduces the actions.
@@ -551,17 +556,7 @@ fn fixed_std_sets_exploration_and_keeps_the_gradient_exact() {
         var += (a[0] - mean[0]).powi(2) / n as f64;
     }
     assert!((var.sqrt() - 0.2).abs() < 0.02, "std {}", var.sqrt());
-    let mut env = Reach::default();
-    svg.train(
-        &mut env,
-        &ReachReward,
-        60,
-        None,
-        &|_| 0.0,
-        &mut rng,
-        &mut |_| {},
-    )
-    .unwrap();
+    train_plain(&mut svg, 60, &mut rng);
     let batch = svg.sample(16, &mut rng).unwrap();
     let inputs = svg.policy_inputs(&batch).unwrap();
     let (_, grads) = svg.policy_objective(&batch, &inputs, &ReachReward).unwrap();
@@ -727,19 +722,9 @@ fn uniform_average_is_the_mean_of_the_policies_since_its_start() {
         ..small_config()
     };
     let (mut svg, mut rng) = fresh(4, &config);
-    let mut env = Reach::default();
     // 60 steps: replay for the updates below, and no policy update yet
     // (updates start after learning_starts + policy_delay = 100 steps).
-    svg.train(
-        &mut env,
-        &ReachReward,
-        60,
-        None,
-        &|_| 0.0,
-        &mut rng,
-        &mut |_| {},
-    )
-    .unwrap();
+    train_plain(&mut svg, 60, &mut rng);
     // The exponential average of tau 0.3 is over: the copy is reported but
     // still the start's policy.
     assert_eq!(svg.reported_policy(), svg.policy());
