@@ -99,8 +99,9 @@ pub struct SvgConfig {
     /// Environment step at which the schedules above end. 0: no schedule.
     pub schedule_steps: u64,
     /// Polyak factor of an averaged copy of the policy's parameters, moved
-    /// after every policy update (0: no averaged copy). The averaged policy
-    /// is what [`Svg1::reported_policy`] returns.
+    /// after every policy update (0: no averaged copy, unless
+    /// `policy_avg_uniform_from` asks for one). The averaged policy is what
+    /// [`Svg1::reported_policy`] returns.
     pub policy_avg_tau: f64,
     /// From this environment step on, the averaged copy is the plain mean
     /// of the policies after each policy update since then (Polyak-Ruppert
@@ -315,7 +316,8 @@ pub struct Svg1 {
     value_opt: Adam,
     replay: ReplayBuffer,
     env_steps: u64,
-    /// Polyak-averaged policy (when `policy_avg_tau > 0`).
+    /// Averaged policy (when `policy_avg_tau > 0` or
+    /// `policy_avg_uniform_from` is set).
     #[serde(default)]
     avg_policy: Option<GaussianPolicy>,
     /// Policy updates averaged uniformly so far (`policy_avg_uniform_from`).
