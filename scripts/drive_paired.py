@@ -5,7 +5,8 @@ runs RUNS_DIR/NAME-DEMO-sK (DEMO: scripted, s11, s23, s37; made by `red-cli driv
 paired difference against the same method at the session-32 defaults (docs/results/drive.md,
 "The defaults since session 32": RED on seeds 0-9, AE, GAIL and GMMIL on seeds 0-4), as
 sessions 34 and 35 computed them. SEEDS: "0 1 2 3 4" by default; METHOD: red (default), ae,
-gail or gmmil."""
+gail or gmmil; or red@37: RED against the defaults since session 37 (the Polyak-averaged
+policy, session 34's runs of it on seeds 0-9)."""
 import json, os, sys, math
 D = {  # (demo road per seed 0-9, unseen per seed 0-9)
  "scripted": ([100.0,100.0,100.0,100.0,84.0,70.9,61.5,100.0,64.9,100.0],[54.4,90.8,96.3,92.5,70.9,35.1,57.2,75.4,37.8,94.8]),
@@ -28,10 +29,18 @@ BASE = {
            "s23": ([21.5,80.8,21.3,68.0,42.4],[54.5,74.6,52.6,65.3,68.0]),
            "s37": ([100.0,100.0,81.5,100.0,81.5],[17.6,15.8,15.2,15.8,15.2])},
 }
+# RED at the defaults since session 37 (svg.policy_avg_tau 1e-4), session 34's runs.
+BASE["red@37"] = {
+ "scripted": ([100.0]*10,[65.7,98.5,97.3,87.5,86.1,48.3,77.6,69.5,46.7,93.3]),
+ "s11": ([87.8,77.1,81.9,100.0,77.6,90.6,77.6,100.0,100.0,85.1],[70.8,53.8,63.4,70.5,44.2,61.2,62.0,68.8,70.7,75.3]),
+ "s23": ([100.0,76.3,100.0,80.9,100.0,80.7,100.0,79.7,100.0,100.0],[96.6,85.0,65.2,56.8,72.9,72.1,93.3,84.2,81.9,86.7]),
+ "s37": ([100.0,44.5,100.0,100.0,63.0,100.0,100.0,100.0,100.0,100.0],[87.9,46.1,50.1,76.6,86.9,100.0,100.0,81.7,100.0,100.0]),
+}
 root, name = sys.argv[1], sys.argv[2]
 method = sys.argv[4] if len(sys.argv) > 4 else "red"
 if method != "red":
     D = BASE[method]
+    method = method.split("@")[0]
 seeds = [int(s) for s in (sys.argv[3] if len(sys.argv) > 3 else "0 1 2 3 4").split()]
 dr, du, dd, ddu, n90, n90d = [], [], [], [], 0, 0
 print(f"| setting | demo | seeds | % demo road | mean | worst | % unseen roads | mean |")
