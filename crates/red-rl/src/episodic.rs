@@ -12,7 +12,7 @@
 //! # ) -> red_rl::Result<()> {
 //! use rand::SeedableRng;
 //! let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-//! svg.train(env, reward, 20_000, None, &|_| 0.0, &mut rng, &mut |ep| {
+//! svg.train(env, reward, 20_000, None, &|_, _| 0.0, &mut rng, &mut |ep| {
 //!     println!("{} {}", ep.env_steps, ep.true_return);
 //! })?;
 //! # Ok(()) }
@@ -208,7 +208,9 @@ pub trait EpisodicLearner {
 
     /// Runs one episode of at most `max_steps` steps, learning as it goes;
     /// the reset seed is `reset_seed` or drawn from `rng`, and
-    /// `terminal(final_reward)` is added to the episode's last stored reward.
+    /// `terminal(final_reward, final_info)` (the last step's imitation
+    /// reward and the environment's info of that step, which may say how
+    /// the episode ended) is added to the episode's last stored reward.
     ///
     /// # Errors
     /// The learner's own (shapes, non-finite values, the environment's).
@@ -217,7 +219,7 @@ pub trait EpisodicLearner {
         env: &mut E,
         reward: &dyn DifferentiableReward,
         reset_seed: Option<u64>,
-        terminal: &dyn Fn(f64) -> f64,
+        terminal: &dyn Fn(f64, &Info) -> f64,
         max_steps: u64,
         rng: &mut R,
     ) -> Result<EpisodeOutcome>;
@@ -235,7 +237,7 @@ pub trait EpisodicLearner {
         env: &mut E,
         total_env_steps: u64,
         reset_seed: Option<u64>,
-        terminal: &dyn Fn(f64) -> f64,
+        terminal: &dyn Fn(f64, &Info) -> f64,
         rng: &mut R,
         hooks: &mut H,
     ) -> std::result::Result<ControlFlow<()>, H::Error>
@@ -273,7 +275,7 @@ pub trait EpisodicLearner {
         reward: &dyn DifferentiableReward,
         steps: u64,
         reset_seed: Option<u64>,
-        terminal: &dyn Fn(f64) -> f64,
+        terminal: &dyn Fn(f64, &Info) -> f64,
         rng: &mut R,
         on_episode: &mut dyn FnMut(&EpisodeReport),
     ) -> Result<()>

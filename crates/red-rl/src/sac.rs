@@ -30,7 +30,7 @@ use rand::{Rng, RngExt};
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 
-use red_core::Env;
+use red_core::{Env, Info};
 use red_nets::{
     Activation, Adam, AdamConfig, Init, Mlp, MlpConfig, Optimizer, Tape, clip_grad_norm, mse_loss,
 };
@@ -644,7 +644,7 @@ impl Sac {
         max_steps: u64,
         rng: &mut R,
     ) -> Result<EpisodeOutcome> {
-        self.episode(env, None, reset_seed, &|_| 0.0, max_steps, rng)
+        self.episode(env, None, reset_seed, &|_, _| 0.0, max_steps, rng)
     }
 
     /// One episode; `reward` `None` stores the environment's reward.
@@ -653,7 +653,7 @@ impl Sac {
         env: &mut E,
         reward: Option<&dyn DifferentiableReward>,
         reset_seed: Option<u64>,
-        terminal: &dyn Fn(f64) -> f64,
+        terminal: &dyn Fn(f64, &Info) -> f64,
         max_steps: u64,
         rng: &mut R,
     ) -> Result<EpisodeOutcome> {
@@ -694,7 +694,7 @@ impl Sac {
                 }
             }
             if step.terminated || step.truncated {
-                let adj = terminal(r);
+                let adj = terminal(r, &step.info);
                 self.adjust_last_reward(adj);
                 log.end(adj, step.info);
                 break;
@@ -724,8 +724,8 @@ impl EpisodicLearner for Sac {
     /// `reward` (never the environment's) and updating after
     /// `learning_starts`. The episode starts with `env.reset(Some(seed))`,
     /// the seed `reset_seed` or one drawn from `rng`. At its end
-    /// `terminal(final_reward)` is added to the last stored reward (RED's
-    /// terminal heuristic; `|_| 0.0` for none). The same contract as
+    /// `terminal(final_reward, final_info)` is added to the last stored
+    /// reward (RED's terminal heuristic; `|_, _| 0.0` for none). The same contract as
     /// [`Svg1`](crate::svg::Svg1)'s [`EpisodicLearner::run_episode`].
     ///
     /// # Errors
@@ -736,7 +736,7 @@ impl EpisodicLearner for Sac {
         env: &mut E,
         reward: &dyn DifferentiableReward,
         reset_seed: Option<u64>,
-        terminal: &dyn Fn(f64) -> f64,
+        terminal: &dyn Fn(f64, &Info) -> f64,
         max_steps: u64,
         rng: &mut R,
     ) -> Result<EpisodeOutcome> {

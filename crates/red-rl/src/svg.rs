@@ -32,7 +32,7 @@ use ndarray::{Array2, ArrayView2, Axis, concatenate, s};
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 
-use red_core::Env;
+use red_core::{Env, Info};
 use red_nets::{
     Activation, Adam, AdamConfig, Gradients, Init, Mlp, MlpConfig, Optimizer, Tape, Workspace,
     clip_grad_norm, mse_loss,
@@ -992,9 +992,10 @@ impl EpisodicLearner for Svg1 {
     /// environment steps, storing transitions with the imitation reward of
     /// `reward` (never the environment's) and updating as configured. The
     /// episode starts with `env.reset(Some(reset_seed))` or, without one,
-    /// a seed drawn from `rng`. At the episode's end `terminal(final_reward)`
-    /// is added to the last stored reward (RED's terminal heuristic; pass
-    /// `|_| 0.0` for none).
+    /// a seed drawn from `rng`. At the episode's end `terminal(final_reward,
+    /// final_info)` (the last step's imitation reward and the environment's
+    /// info of that step) is added to the last stored reward (RED's terminal
+    /// heuristic; pass `|_, _| 0.0` for none).
     ///
     /// Returns the episode's report and its state-action pairs; `finished`
     /// is false when the step budget cut it short.
@@ -1008,7 +1009,7 @@ impl EpisodicLearner for Svg1 {
         env: &mut E,
         reward: &dyn DifferentiableReward,
         reset_seed: Option<u64>,
-        terminal: &dyn Fn(f64) -> f64,
+        terminal: &dyn Fn(f64, &Info) -> f64,
         max_steps: u64,
         rng: &mut R,
     ) -> Result<EpisodeOutcome> {
@@ -1061,7 +1062,7 @@ impl EpisodicLearner for Svg1 {
                 }
             }
             if step.terminated || step.truncated {
-                let adj = terminal(r);
+                let adj = terminal(r, &step.info);
                 self.adjust_last_reward(adj);
                 log.end(adj, step.info);
                 if let Some(last) = own_rewards.last_mut() {

@@ -152,7 +152,7 @@ fn sac_learns_to_reach() {
         &ReachReward,
         6_000,
         None,
-        &|_| 0.0,
+        &|_, _| 0.0,
         &mut rng,
         &mut |_| {},
     )
@@ -182,7 +182,7 @@ fn same_seed_same_weights() {
             &ReachReward,
             400,
             None,
-            &|_| 0.0,
+            &|_, _| 0.0,
             &mut rng,
             &mut |_| {},
         )
@@ -199,7 +199,7 @@ fn same_seed_same_weights() {
             &ReachReward,
             400,
             None,
-            &|_| 0.0,
+            &|_, _| 0.0,
             &mut rng,
             &mut |_| {},
         )
@@ -216,7 +216,7 @@ fn checkpoint_resumes_with_the_same_numbers() {
         &ReachReward,
         300,
         None,
-        &|_| 0.0,
+        &|_, _| 0.0,
         &mut rng,
         &mut |_| {},
     )
@@ -227,7 +227,7 @@ fn checkpoint_resumes_with_the_same_numbers() {
         &ReachReward,
         200,
         None,
-        &|_| 0.0,
+        &|_, _| 0.0,
         &mut rng,
         &mut |_| {},
     )
@@ -239,7 +239,7 @@ fn checkpoint_resumes_with_the_same_numbers() {
             &ReachReward,
             200,
             None,
-            &|_| 0.0,
+            &|_, _| 0.0,
             &mut rng2,
             &mut |_| {},
         )

@@ -148,7 +148,7 @@ fn train_plain(svg: &mut Svg1, steps: u64, rng: &mut ChaCha8Rng) {
         &ReachReward,
         steps,
         None,
-        &|_| 0.0,
+        &|_, _| 0.0,
         rng,
         &mut |_| {},
     )
@@ -221,7 +221,7 @@ fn run(seed: u64, steps: u64) -> (Svg1, Vec<f64>) {
         &ReachReward,
         steps,
         None,
-        &|_| 0.0,
+        &|_, _| 0.0,
         &mut rng,
         &mut |e| returns.push(e.true_return),
     )
@@ -384,7 +384,7 @@ fn non_finite_reward_or_observation_stops_with_what_and_step() {
             &reward,
             100,
             None,
-            &|_| 0.0,
+            &|_, _| 0.0,
             &mut rng,
             &mut |_| {},
         )
@@ -403,7 +403,7 @@ fn non_finite_reward_or_observation_stops_with_what_and_step() {
             &ReachReward,
             100,
             None,
-            &|_| 0.0,
+            &|_, _| 0.0,
             &mut rng,
             &mut |_| {},
         )
@@ -433,7 +433,7 @@ fn serialised_learner_continues_identically() {
         &ReachReward,
         200,
         None,
-        &|_| 0.0,
+        &|_, _| 0.0,
         &mut rng_a,
         &mut |_| {},
     )
@@ -447,7 +447,7 @@ fn serialised_learner_continues_identically() {
         &ReachReward,
         200,
         None,
-        &|_| 0.0,
+        &|_, _| 0.0,
         &mut rng_a,
         &mut |e| ra.push(e.true_return),
     )
@@ -457,7 +457,7 @@ fn serialised_learner_continues_identically() {
         &ReachReward,
         200,
         None,
-        &|_| 0.0,
+        &|_, _| 0.0,
         &mut rng_b,
         &mut |e| rb.push(e.true_return),
     )
@@ -508,7 +508,7 @@ fn hooks_stop_and_checkpoint_and_the_resumed_loop_ends_with_the_same_numbers() {
         saved: None,
     };
     let train = |svg: &mut Svg1, rng: &mut ChaCha8Rng, hooks: &mut SaveAndStop| {
-        let flow = svg.train_with(&mut Reach::default(), 400, None, &|_| 0.0, rng, hooks);
+        let flow = svg.train_with(&mut Reach::default(), 400, None, &|_, _| 0.0, rng, hooks);
         flow.unwrap()
     };
     let (mut whole, mut rng) = fresh(4, &config);
@@ -607,7 +607,7 @@ fn scheduled_fixed_std_and_averaged_policy_learn_to_reach() {
         &ReachReward,
         8_000,
         None,
-        &|_| 0.0,
+        &|_, _| 0.0,
         &mut rng,
         &mut |_| {},
     )
@@ -647,7 +647,7 @@ fn the_bc_term_needs_fitting_demonstration_pairs() {
             &ReachReward,
             200,
             None,
-            &|_| 0.0,
+            &|_, _| 0.0,
             &mut rng,
             &mut |_| {},
         )
@@ -662,7 +662,7 @@ fn the_bc_term_needs_fitting_demonstration_pairs() {
         &ReachReward,
         200,
         None,
-        &|_| 0.0,
+        &|_, _| 0.0,
         &mut rng,
         &mut |_| {},
     )

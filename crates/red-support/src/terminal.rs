@@ -116,10 +116,16 @@ impl TerminalHeuristic {
     /// reward `final_reward`: `-σ2 r̄` if `final_reward < σ3 r̄`, else 0.
     pub fn penalty(&self, final_reward: f64) -> f64 {
         if final_reward < self.sigma3 * self.expert_mean_reward {
-            -self.sigma2 * self.expert_mean_reward
+            self.full_penalty()
         } else {
             0.0
         }
+    }
+
+    /// The penalty itself, `-σ2 r̄`, for a caller that knows an ending is
+    /// undesirable without the support test (a crash, say).
+    pub fn full_penalty(&self) -> f64 {
+        -self.sigma2 * self.expert_mean_reward
     }
 }
 

@@ -236,7 +236,7 @@ pub(super) fn run(
         let ep = match &state.reward {
             Some(r) => state
                 .sac
-                .run_episode(&mut env, r, None, &|_| 0.0, left, &mut state.rng),
+                .run_episode(&mut env, r, None, &|_, _| 0.0, left, &mut state.rng),
             None => state
                 .sac
                 .run_env_episode(&mut env, None, left, &mut state.rng),
