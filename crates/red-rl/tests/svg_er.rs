@@ -685,7 +685,7 @@ fn self_imitation_keeps_the_best_own_returns() {
         let mut own = Vec::new();
         // A terminal adjustment that depends on the last reward, so the kept
         // returns must include it to match.
-        let terminal = |r: f64| if r < -0.3 { -1.0 } else { 0.0 };
+        let terminal = |r: f64, _: &red_core::Info| if r < -0.3 { -1.0 } else { 0.0 };
         svg.train(
             &mut env,
             &ReachReward,
