@@ -20,4 +20,8 @@ NAME="${NAME:-drive-main}"
 
 bash scripts/setup-mujoco.sh --no-oracle
 cargo build --release -p red-cli
-./target/release/red-cli drive --demo "$DEMO" --name "$NAME" "$@"
+# A --name among the arguments wins over NAME (clap takes one --name).
+case " $* " in
+*" --name "* | *" --name="*) ./target/release/red-cli drive --demo "$DEMO" "$@" ;;
+*) ./target/release/red-cli drive --demo "$DEMO" --name "$NAME" "$@" ;;
+esac
