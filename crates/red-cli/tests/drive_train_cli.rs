@@ -404,3 +404,102 @@ fn the_table_and_numbers_are_written_when_a_picture_cannot_be() {
     );
     assert!(!dir.path().join("p/checkpoint.json").exists());
 }
+
+/// `red-cli drive eval` output: `road S...: P% | ...` lines, as (seed, P).
+fn road_percents(stdout: &str) -> Vec<(u64, f64)> {
+    stdout
+        .lines()
+        .filter_map(|l| {
+            let rest = l.strip_prefix("road ")?;
+            let seed = rest.split([' ', ':']).next()?.parse().ok()?;
+            let p = rest.split(": ").nth(1)?.split('%').next()?.parse().ok()?;
+            Some((seed, p))
+        })
+        .collect()
+}
+
+#[test]
+fn a_finished_run_keeps_its_policies_and_drive_eval_drives_them_again() {
+    let dir = tempfile::tempdir().unwrap();
+    ok(&train(dir.path(), "e", "red,bc", &[]));
+    let run = dir.path().join("e");
+    for f in [
+        "red_policy.json",
+        "red_selected_policy.json",
+        "bc_policy.json",
+    ] {
+        assert!(run.join(f).is_file(), "{f} missing");
+    }
+    let eval: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("eval.json")).unwrap()).unwrap();
+    let bin = env!("CARGO_BIN_EXE_red-cli");
+    for (method, extra, key) in [
+        ("red", None, "final_policy"),
+        ("bc", None, "final_policy"),
+        ("red", Some("--selected"), "selected_by_own_reward"),
+    ] {
+        let mut c = Command::new(bin);
+        c.args(["drive", "eval", "--method", method, "--run"])
+            .arg(&run);
+        if let Some(x) = extra {
+            c.arg(x);
+        }
+        let o = c.output().unwrap();
+        ok(&o);
+        let out = String::from_utf8_lossy(&o.stdout);
+        let got = road_percents(&out);
+        let m = eval["methods"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|m| m["method"] == method)
+            .unwrap();
+        let want = &m[key];
+        // The demo's road first, then the unseen roads, each the number
+        // eval.json holds for the same episodes.
+        assert_eq!(got.len(), 3, "{out}");
+        assert_eq!(got[0].0, eval["track_seed"].as_u64().unwrap(), "{out}");
+        let close = |a: f64, b: &serde_json::Value| (a - b.as_f64().unwrap()).abs() < 0.051;
+        assert!(close(got[0].1, &want["percent_of_road"]), "{out}\n{want}");
+        for (i, (seed, p)) in got[1..].iter().enumerate() {
+            assert_eq!(*seed, want["unseen_roads"]["track_seeds"][i], "{out}");
+            assert!(
+                close(*p, &want["unseen_roads"]["percent_per_road"][i]),
+                "{out}\n{want}"
+            );
+        }
+    }
+    // One named road, a picture of it, and a method the run did not train.
+    let png = dir.path().join("road7.png");
+    let o = Command::new(bin)
+        .args(["drive", "eval", "--roads", "7", "--runs", "1", "--run"])
+        .arg(&run)
+        .arg("--png")
+        .arg(&png)
+        .output()
+        .unwrap();
+    ok(&o);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(road_percents(&out).len(), 1, "{out}");
+    assert!(out.contains("road 7:"), "{out}");
+    assert!(std::fs::metadata(&png).unwrap().len() > 0);
+    let o = Command::new(bin)
+        .args(["drive", "eval", "--method", "gail", "--run"])
+        .arg(&run)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("gail_policy.json") && err.contains("red, bc"),
+        "{err}"
+    );
+    let o = Command::new(bin)
+        .args(["drive", "eval", "--run"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("config.json"), "{err}");
+}
