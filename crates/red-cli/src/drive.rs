@@ -12,10 +12,7 @@ use red_core::Demos;
 use red_drive::record::RecordStatus;
 use red_drive::render::demo_paths;
 use red_drive::scenario::episode_lines;
-use red_drive::{
-    DriveConfig, ExpertStyle, PathSpec, Recorder, RenderOptions, render_png, terminal,
-};
-use red_experiments::drive;
+use red_drive::{DriveConfig, ExpertStyle, Recorder, RenderOptions, render_png, terminal};
 
 /// Arguments of `red-cli drive`.
 #[derive(Debug, Args)]
@@ -43,35 +40,6 @@ pub enum DriveCommand {
     /// Draw a demonstration file's paths (and lidar rays) on its road as a
     /// PNG.
     Render(RenderArgs),
-    /// Drive a finished run's saved policy again, episode by episode, on
-    /// its roads or others: where and how each episode ended.
-    Eval(EvalArgs),
-}
-
-/// Arguments of `red-cli drive eval`.
-#[derive(Debug, Args)]
-pub struct EvalArgs {
-    /// Folder of a finished `red-cli drive --demo` run.
-    #[arg(long)]
-    pub run: PathBuf,
-    /// The method whose policy to drive.
-    #[arg(long, default_value = "red")]
-    pub method: String,
-    /// Drive the policy its own reward selected during training instead of
-    /// the final one.
-    #[arg(long)]
-    pub selected: bool,
-    /// Track seeds of the roads, comma-separated (default: the run's
-    /// demonstration road and its unseen roads).
-    #[arg(long, value_delimiter = ',')]
-    pub roads: Vec<u64>,
-    /// Episodes per road (default: the run's evaluation runs), from reset
-    /// seed 1000 on, as the run's evaluation.
-    #[arg(long)]
-    pub runs: Option<usize>,
-    /// Draw the episodes of the first road as a PNG.
-    #[arg(long)]
-    pub png: Option<PathBuf>,
 }
 
 /// Arguments of `red-cli drive expert`.
@@ -141,7 +109,6 @@ pub fn run(args: DriveArgs) -> anyhow::Result<()> {
         Some(DriveCommand::Expert(a)) => expert(a),
         Some(DriveCommand::Record(a)) => record(a),
         Some(DriveCommand::Render(a)) => render(a),
-        Some(DriveCommand::Eval(a)) => eval(a),
         None if args.train.demo.is_some() || args.train.resume.is_some() => {
             crate::drive_train::run(args.train)
         }
@@ -213,81 +180,6 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
         paths.len(),
         config.track_seed
     );
-    Ok(())
-}
-
-fn eval(args: EvalArgs) -> anyhow::Result<()> {
-    use red_drive::PathEnd;
-    let (run, policy) = drive::load_run_policy(&args.run, &args.method, args.selected)?;
-    let runs = args.runs.unwrap_or(run.eval_runs);
-    if runs == 0 {
-        bail!("--runs must be at least 1");
-    }
-    let demo_seed = run.drive.track_seed;
-    let roads = if args.roads.is_empty() {
-        std::iter::once(demo_seed)
-            .chain(run.unseen_track_seeds())
-            .collect()
-    } else {
-        args.roads.clone()
-    };
-    println!(
-        "{} {} policy of {}: {runs} deterministic episode(s) per road (reset seeds {}..)",
-        args.method,
-        if args.selected { "selected" } else { "final" },
-        args.run.display(),
-        drive::EVAL_SEED
-    );
-    let mut others = Vec::new();
-    for (i, &seed) in roads.iter().enumerate() {
-        let road = DriveConfig {
-            track_seed: seed,
-            ..run.drive.clone()
-        };
-        let episodes = drive::evaluation_episodes(&road, &policy, runs)?;
-        let mean = episodes.iter().map(|e| e.distance).sum::<f64>() / runs as f64;
-        let percent = 100.0 * mean / road.road_length;
-        let ends: Vec<String> = episodes
-            .iter()
-            .map(|e| match e.end {
-                PathEnd::Success => format!("{:.1} finish", e.distance),
-                PathEnd::Collision => format!("{:.1} crash (y {:+.2} m)", e.distance, e.end_y),
-                PathEnd::Stopped => format!("{:.1} time up", e.distance),
-            })
-            .collect();
-        let label = if seed == demo_seed {
-            format!("road {seed} (the demonstration's)")
-        } else {
-            others.push(percent);
-            format!("road {seed}")
-        };
-        println!("{label}: {percent:.1}% | {}", ends.join(" | "));
-        if i == 0
-            && let Some(png) = &args.png
-        {
-            let paths: Vec<PathSpec> = episodes
-                .iter()
-                .enumerate()
-                .map(|(k, e)| PathSpec {
-                    label: format!("{} {k}", args.method),
-                    colour: [200, 30, 30],
-                    poses: e.poses.clone(),
-                    end: e.end,
-                    lidar: Vec::new(),
-                })
-                .collect();
-            render_png(png, &road, &paths, &RenderOptions::default())?;
-            println!("{}: the episodes of road {seed}", png.display());
-        }
-    }
-    if !others.is_empty() {
-        let mean = others.iter().sum::<f64>() / others.len() as f64;
-        let worst = others.iter().copied().fold(f64::INFINITY, f64::min);
-        println!(
-            "{} other road(s): {mean:.1}% of the road on average, worst {worst:.1}%",
-            others.len()
-        );
-    }
     Ok(())
 }
 

@@ -405,7 +405,7 @@ fn the_table_and_numbers_are_written_when_a_picture_cannot_be() {
     assert!(!dir.path().join("p/checkpoint.json").exists());
 }
 
-/// `red-cli drive eval` output: `road S...: P% | ...` lines, as (seed, P).
+/// `eval_saved` output: `road S...: P% | ...` lines, as (seed, P).
 fn road_percents(stdout: &str) -> Vec<(u64, f64)> {
     stdout
         .lines()
@@ -419,7 +419,7 @@ fn road_percents(stdout: &str) -> Vec<(u64, f64)> {
 }
 
 #[test]
-fn a_finished_run_keeps_its_policies_and_drive_eval_drives_them_again() {
+fn a_finished_run_keeps_its_policies_and_eval_saved_drives_them_again() {
     let dir = tempfile::tempdir().unwrap();
     ok(&train(dir.path(), "e", "red,bc", &[]));
     let run = dir.path().join("e");
@@ -432,21 +432,17 @@ fn a_finished_run_keeps_its_policies_and_drive_eval_drives_them_again() {
     }
     let eval: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run.join("eval.json")).unwrap()).unwrap();
-    let bin = env!("CARGO_BIN_EXE_red-cli");
-    for (method, extra, key) in [
-        ("red", None, "final_policy"),
-        ("bc", None, "final_policy"),
-        ("red", Some("--selected"), "selected_by_own_reward"),
+    for (method, selected, key) in [
+        ("red", false, "final_policy"),
+        ("bc", false, "final_policy"),
+        ("red", true, "selected_by_own_reward"),
     ] {
-        let mut c = Command::new(bin);
-        c.args(["drive", "eval", "--method", method, "--run"])
-            .arg(&run);
-        if let Some(x) = extra {
-            c.arg(x);
-        }
-        let o = c.output().unwrap();
-        ok(&o);
-        let out = String::from_utf8_lossy(&o.stdout);
+        let req = red_experiments::drive::EvalRequest {
+            method: method.into(),
+            selected,
+            ..Default::default()
+        };
+        let out = red_experiments::drive::eval_saved(&run, &req).unwrap();
         let got = road_percents(&out);
         let m = eval["methods"]
             .as_array()
@@ -471,35 +467,30 @@ fn a_finished_run_keeps_its_policies_and_drive_eval_drives_them_again() {
     }
     // One named road, a picture of it, and a method the run did not train.
     let png = dir.path().join("road7.png");
-    let o = Command::new(bin)
-        .args(["drive", "eval", "--roads", "7", "--runs", "1", "--run"])
-        .arg(&run)
-        .arg("--png")
-        .arg(&png)
-        .output()
-        .unwrap();
-    ok(&o);
-    let out = String::from_utf8_lossy(&o.stdout);
+    let req = red_experiments::drive::EvalRequest {
+        method: "red".into(),
+        roads: vec![7],
+        runs: Some(1),
+        png: Some(png.clone()),
+        ..Default::default()
+    };
+    let out = red_experiments::drive::eval_saved(&run, &req).unwrap();
     assert_eq!(road_percents(&out).len(), 1, "{out}");
     assert!(out.contains("road 7:"), "{out}");
     assert!(std::fs::metadata(&png).unwrap().len() > 0);
-    let o = Command::new(bin)
-        .args(["drive", "eval", "--method", "gail", "--run"])
-        .arg(&run)
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
+    let req = red_experiments::drive::EvalRequest {
+        method: "gail".into(),
+        ..Default::default()
+    };
+    let err = red_experiments::drive::eval_saved(&run, &req)
+        .unwrap_err()
+        .to_string();
     assert!(
         err.contains("gail_policy.json") && err.contains("red, bc"),
         "{err}"
     );
-    let o = Command::new(bin)
-        .args(["drive", "eval", "--run"])
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = red_experiments::drive::eval_saved(dir.path(), &req)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("config.json"), "{err}");
 }

@@ -1178,7 +1178,7 @@ pub fn evaluate_roads(
     })
 }
 
-/// One deterministic evaluation episode, as `red-cli drive eval` lists it.
+/// One deterministic evaluation episode, as `red_experiments::drive::eval_saved` lists it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Episode {
     /// Its reset seed.
@@ -1267,6 +1267,102 @@ pub fn load_run_policy(
         reason: format!("not a policy file ({e})"),
     })?;
     Ok((run, policy))
+}
+
+/// What `red_experiments::drive::eval_saved` asks of a finished run.
+#[derive(Debug, Clone, Default)]
+pub struct EvalRequest {
+    /// The method whose saved policy to drive.
+    pub method: String,
+    /// The policy its own reward selected instead of the final one.
+    pub selected: bool,
+    /// Track seeds of the roads (empty: the run's demo road and unseen
+    /// roads).
+    pub roads: Vec<u64>,
+    /// Episodes per road (`None`: the run's evaluation runs).
+    pub runs: Option<usize>,
+    /// Draw the first road's episodes to this PNG.
+    pub png: Option<std::path::PathBuf>,
+}
+
+/// Drives a finished run's saved policy again, road by road, and returns
+/// the lines to print: each road's % and how every episode ended, then
+/// the mean over the roads other than the demonstration's.
+///
+/// # Errors
+/// [`load_run_policy`]'s errors, zero runs, environment and picture
+/// errors.
+pub fn eval_saved(dir: &Path, req: &EvalRequest) -> Result<String> {
+    use std::fmt::Write as _;
+    let (run, policy) = load_run_policy(dir, &req.method, req.selected)?;
+    let runs = req.runs.unwrap_or(run.eval_runs);
+    if runs == 0 {
+        return Err(invalid("runs", "must be at least 1".into()));
+    }
+    let demo_seed = run.drive.track_seed;
+    let roads: Vec<u64> = if req.roads.is_empty() {
+        std::iter::once(demo_seed)
+            .chain(run.unseen_track_seeds())
+            .collect()
+    } else {
+        req.roads.clone()
+    };
+    let mut out = format!(
+        "{} {} policy of {}: {runs} deterministic episode(s) per road (reset seeds {EVAL_SEED}..)\n",
+        req.method,
+        if req.selected { "selected" } else { "final" },
+        dir.display(),
+    );
+    let mut others = Vec::new();
+    for (i, &seed) in roads.iter().enumerate() {
+        let road = DriveConfig {
+            track_seed: seed,
+            ..run.drive.clone()
+        };
+        let episodes = evaluation_episodes(&road, &policy, runs)?;
+        let mean = episodes.iter().map(|e| e.distance).sum::<f64>() / runs as f64;
+        let percent = 100.0 * mean / road.road_length;
+        let ends: Vec<String> = episodes
+            .iter()
+            .map(|e| match e.end {
+                PathEnd::Success => format!("{:.1} finish", e.distance),
+                PathEnd::Collision => format!("{:.1} crash (y {:+.2} m)", e.distance, e.end_y),
+                PathEnd::Stopped => format!("{:.1} time up", e.distance),
+            })
+            .collect();
+        let label = if seed == demo_seed {
+            format!("road {seed} (the demonstration's)")
+        } else {
+            others.push(percent);
+            format!("road {seed}")
+        };
+        let _ = writeln!(out, "{label}: {percent:.1}% | {}", ends.join(" | "));
+        if let (0, Some(png)) = (i, &req.png) {
+            let paths: Vec<PathSpec> = episodes
+                .into_iter()
+                .enumerate()
+                .map(|(k, e)| PathSpec {
+                    label: format!("{} {k}", req.method),
+                    colour: [200, 30, 30],
+                    poses: e.poses,
+                    end: e.end,
+                    lidar: Vec::new(),
+                })
+                .collect();
+            render_png(png, &road, &paths, &RenderOptions::default())?;
+            let _ = writeln!(out, "{}: the episodes of road {seed}", png.display());
+        }
+    }
+    if !others.is_empty() {
+        let mean = others.iter().sum::<f64>() / others.len() as f64;
+        let worst = others.iter().copied().fold(f64::INFINITY, f64::min);
+        let _ = writeln!(
+            out,
+            "{} other road(s): {mean:.1}% of the road on average, worst {worst:.1}%",
+            others.len()
+        );
+    }
+    Ok(out)
 }
 
 /// A policy's report: the demonstration's road and the unseen roads.
