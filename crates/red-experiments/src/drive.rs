@@ -1178,49 +1178,6 @@ pub fn evaluate_roads(
     })
 }
 
-/// One deterministic evaluation episode, as `red_experiments::drive::eval_saved` lists it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Episode {
-    /// Its reset seed.
-    pub reset_seed: u64,
-    /// Distance driven, metres.
-    pub distance: f64,
-    /// How it ended.
-    pub end: PathEnd,
-    /// The car's lateral offset from the road's centre line at the end,
-    /// metres (positive: the left side).
-    pub end_y: f64,
-    /// Its path.
-    #[serde(skip)]
-    pub poses: Vec<CarState>,
-}
-
-/// Drives `policy` on `runs` deterministic episodes of `road` with the
-/// evaluation's reset seeds (1000, 1001, ...: the episodes behind
-/// [`evaluate`]'s numbers), keeping how each one ended.
-///
-/// # Errors
-/// Environment and policy errors.
-pub fn evaluation_episodes(
-    road: &DriveConfig,
-    policy: &GaussianPolicy,
-    runs: usize,
-) -> Result<Vec<Episode>> {
-    (0..runs as u64)
-        .map(|i| {
-            let seed = EVAL_SEED + i;
-            let r = rollout(road, policy, seed, None, false)?;
-            Ok(Episode {
-                reset_seed: seed,
-                distance: r.distance,
-                end: r.path.end,
-                end_y: r.path.poses.last().map_or(0.0, |c| c.y),
-                poses: r.path.poses,
-            })
-        })
-        .collect()
-}
-
 /// The settings and a saved policy of a finished run folder: `method`'s
 /// final policy, or with `selected` the one its own reward selected.
 ///
@@ -1319,15 +1276,19 @@ pub fn eval_saved(dir: &Path, req: &EvalRequest) -> Result<String> {
             track_seed: seed,
             ..run.drive.clone()
         };
-        let episodes = evaluation_episodes(&road, &policy, runs)?;
-        let mean = episodes.iter().map(|e| e.distance).sum::<f64>() / runs as f64;
-        let percent = 100.0 * mean / road.road_length;
-        let ends: Vec<String> = episodes
+        let (eval, paths) = evaluate(&road, &policy, runs)?;
+        let percent = eval.percent_of_road;
+        let ends: Vec<String> = eval
+            .distances
             .iter()
-            .map(|e| match e.end {
-                PathEnd::Success => format!("{:.1} finish", e.distance),
-                PathEnd::Collision => format!("{:.1} crash (y {:+.2} m)", e.distance, e.end_y),
-                PathEnd::Stopped => format!("{:.1} time up", e.distance),
+            .zip(&paths)
+            .map(|(d, p)| match p.end {
+                PathEnd::Success => format!("{d:.1} finish"),
+                PathEnd::Collision => {
+                    let y = p.poses.last().map_or(0.0, |c| c.y);
+                    format!("{d:.1} crash (y {y:+.2} m)")
+                }
+                PathEnd::Stopped => format!("{d:.1} time up"),
             })
             .collect();
         let label = if seed == demo_seed {
@@ -1338,14 +1299,14 @@ pub fn eval_saved(dir: &Path, req: &EvalRequest) -> Result<String> {
         };
         let _ = writeln!(out, "{label}: {percent:.1}% | {}", ends.join(" | "));
         if let (0, Some(png)) = (i, &req.png) {
-            let paths: Vec<PathSpec> = episodes
+            let paths: Vec<PathSpec> = paths
                 .into_iter()
                 .enumerate()
-                .map(|(k, e)| PathSpec {
+                .map(|(k, p)| PathSpec {
                     label: format!("{} {k}", req.method),
                     colour: [200, 30, 30],
-                    poses: e.poses,
-                    end: e.end,
+                    poses: p.poses,
+                    end: p.end,
                     lidar: Vec::new(),
                 })
                 .collect();
