@@ -1212,7 +1212,7 @@ pub fn load_run_policy(
                 .to_string()
         } else {
             format!(
-                "no such file; this run saved the {} policies of: {} (pick one with --method)",
+                "no such file; this run saved the {} policies of: {} (ask for one of those methods)",
                 if selected { "selected" } else { "final" },
                 have.join(", ")
             )
@@ -1226,7 +1226,7 @@ pub fn load_run_policy(
     Ok((run, policy))
 }
 
-/// What `red_experiments::drive::eval_saved` asks of a finished run.
+/// What [`eval_saved`] asks of a finished run.
 #[derive(Debug, Clone, Default)]
 pub struct EvalRequest {
     /// The method whose saved policy to drive.
