@@ -215,6 +215,31 @@ pub struct DriveTrainConfig {
     /// Off by default.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub penalise_every_crash: bool,
+    /// Smooth the demonstration's actions before any method learns from
+    /// them (our addition, 0 = off, the default): each action becomes the
+    /// mean of the actions up to this many steps before and after it in
+    /// its trajectory (a centred moving average, shorter at the ends). A
+    /// person steers a keyboard car in taps: most steps steer 0 and a few
+    /// steer hard, so the warm start, the BC term and the reward learn a
+    /// weak average of "no tap" and "tap" at each state. The average spreads
+    /// each tap over its neighbours with the same sum, which turns the car
+    /// as much at small steering angles. The scenario check, the digest
+    /// and the reported demonstration keep the recorded actions.
+    #[serde(skip_serializing_if = "is_zero_usize")]
+    pub demo_action_smoothing: usize,
+    /// RED's and AE's reward on the state only (our addition, off by
+    /// default): the estimator is fitted on the demonstration's states with
+    /// every action set to 0 and scores every pair at action 0
+    /// ([`red_support::RedReward::on_states_only`]), so it rewards being
+    /// where the demonstrator was, not pressing the keys it pressed; the
+    /// terminal heuristic reads the same reward. The BC term and the warm
+    /// start still use the actions. GAIL and GMMIL refuse it.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub reward_on_states: bool,
+}
+
+fn is_zero_usize(v: &usize) -> bool {
+    *v == 0
 }
 
 impl Default for DriveTrainConfig {
@@ -349,6 +374,8 @@ impl Default for DriveTrainConfig {
             train_start_lateral_noise: None,
             train_start_heading_noise: None,
             penalise_every_crash: false,
+            demo_action_smoothing: 0,
+            reward_on_states: false,
         }
     }
 }
@@ -843,14 +870,12 @@ mod stored_reward {
     pub fn serialize<S: Serializer>(r: &ImitationReward, s: S) -> Result<S::Ok, S::Error> {
         let stored = match r {
             ImitationReward::Support(r) => {
-                let sigma1 = r.sigma1();
+                let (sigma1, on_states) = (r.sigma1(), r.states_only());
                 match r.model() {
-                    FittedEstimator::Rnd(m) => {
-                        RedReward::with_sigma1(m.clone(), sigma1).map(Stored::Red)
-                    }
-                    FittedEstimator::Autoencoder(m) => {
-                        RedReward::with_sigma1(m.clone(), sigma1).map(Stored::Ae)
-                    }
+                    FittedEstimator::Rnd(m) => RedReward::with_sigma1(m.clone(), sigma1)
+                        .map(|r| Stored::Red(r.on_states_only(on_states))),
+                    FittedEstimator::Autoencoder(m) => RedReward::with_sigma1(m.clone(), sigma1)
+                        .map(|r| Stored::Ae(r.on_states_only(on_states))),
                     FittedEstimator::KernelPca(_) => {
                         return Err(S::Error::custom("kernel PCA is not a driving method"));
                     }
@@ -870,16 +895,16 @@ mod stored_reward {
         };
         match Stored::deserialize(d)? {
             Stored::Red(r) => {
-                let sigma1 = r.sigma1();
-                support(RedReward::with_sigma1(
-                    FittedEstimator::Rnd(r.into_model()),
-                    sigma1,
-                ))
+                let (sigma1, on_states) = (r.sigma1(), r.states_only());
+                support(
+                    RedReward::with_sigma1(FittedEstimator::Rnd(r.into_model()), sigma1)
+                        .map(|r| r.on_states_only(on_states)),
+                )
             }
             Stored::Ae(r) => {
-                let sigma1 = r.sigma1();
+                let (sigma1, on_states) = (r.sigma1(), r.states_only());
                 let model = FittedEstimator::Autoencoder(r.into_model());
-                support(RedReward::with_sigma1(model, sigma1))
+                support(RedReward::with_sigma1(model, sigma1).map(|r| r.on_states_only(on_states)))
             }
             Stored::Gail(g) => Ok(ImitationReward::Gail(g)),
             Stored::Gmmil(g) => Ok(ImitationReward::Gmmil(g)),
@@ -1352,7 +1377,10 @@ fn report(
 /// The state-action pairs the methods learn from: the demonstration's,
 /// each followed by its mirror image when `train.mirror_demos` is on.
 fn training_pairs(train: &DriveTrainConfig, demos: &Demos) -> (Array2<f64>, Array2<f64>) {
-    let (s, a) = demos.pairs();
+    let (s, mut a) = demos.pairs();
+    if train.demo_action_smoothing > 0 {
+        a = smoothed_actions(&demos.lengths(), a.view(), train.demo_action_smoothing);
+    }
     if !train.mirror_demos {
         return (s, a);
     }
@@ -1369,6 +1397,24 @@ fn training_pairs(train: &DriveTrainConfig, demos: &Demos) -> (Array2<f64>, Arra
         }
     }
     (s2, a2)
+}
+
+/// The actions `(n, act_dim)` of trajectories of `lengths` (stacked in
+/// order), each replaced by the mean of the actions at most `k` steps away
+/// in its own trajectory.
+fn smoothed_actions(lengths: &[usize], a: ArrayView2<'_, f64>, k: usize) -> Array2<f64> {
+    let mut out = Array2::zeros(a.raw_dim());
+    let mut start = 0;
+    for &len in lengths {
+        for t in 0..len {
+            let (lo, hi) = (t.saturating_sub(k), (t + k).min(len - 1));
+            let window = a.slice(ndarray::s![start + lo..=start + hi, ..]);
+            out.row_mut(start + t)
+                .assign(&(window.sum_axis(ndarray::Axis(0)) / (hi - lo + 1) as f64));
+        }
+        start += len;
+    }
+    out
 }
 
 /// A fingerprint of the demonstration's pairs, so a resumed run refuses a
@@ -1439,8 +1485,26 @@ fn fit_reward(
     };
     let mut rng = seeder.rng(Stream::Estimator);
     let gail_seed = seeder.derive(Stream::Estimator);
-    let reward = imitation::fit_reward(m, &settings, es, ea, &mut rng, gail_seed)?
-        .ok_or_else(|| invalid("methods", format!("no reward for `{}`", m.name())))?;
+    let zeros;
+    let ea = if cfg.reward_on_states {
+        if !matches!(m, Method::Red | Method::Ae) {
+            return Err(invalid(
+                "train.reward_on_states",
+                format!("applies to red and ae, not `{}`", m.name()),
+            ));
+        }
+        zeros = Array2::zeros(ea.raw_dim());
+        zeros.view()
+    } else {
+        ea
+    };
+    let reward = match imitation::fit_reward(m, &settings, es, ea, &mut rng, gail_seed)? {
+        Some(ImitationReward::Support(r)) => {
+            ImitationReward::Support(Box::new(r.on_states_only(cfg.reward_on_states)))
+        }
+        Some(r) => r,
+        None => return Err(invalid("methods", format!("no reward for `{}`", m.name()))),
+    };
     let terminal = match reward.support() {
         Some(r) => {
             let heuristic = TerminalHeuristic::new(&cfg.terminal, r, es, ea)?;
@@ -2552,5 +2616,71 @@ mod tests {
             red_drive::env::mirror_pair(&mut o, &mut u);
             assert_eq!((o, u), (s.row(i).to_vec(), a.row(i).to_vec()));
         }
+    }
+
+    #[test]
+    fn smoothing_averages_each_action_within_its_own_trajectory() {
+        // Two trajectories of 3 and 2 steps, one action number each.
+        let a = ndarray::array![[0.0, 1.0], [3.0, 1.0], [0.0, 1.0], [6.0, 0.0], [0.0, 2.0]];
+        let out = smoothed_actions(&[3, 2], a.view(), 1);
+        let want = ndarray::array![[1.5, 1.0], [1.0, 1.0], [1.5, 1.0], [3.0, 1.0], [3.0, 1.0]];
+        assert_eq!(out, want);
+        // A tap keeps its sum when the window fits inside the trajectory.
+        let tap = ndarray::array![[0.0], [0.0], [0.9], [0.0], [0.0]];
+        let spread = smoothed_actions(&[5], tap.view(), 1);
+        assert!((spread.sum() - 0.9).abs() < 1e-12, "{spread}");
+        // The pipeline applies it to the actions only, and 0 is off.
+        let demos = red_drive::expert_demos(&DriveConfig::default(), 1, 0).unwrap();
+        let (s, a) = demos.pairs();
+        let train = DriveTrainConfig {
+            demo_action_smoothing: 2,
+            ..DriveTrainConfig::default()
+        };
+        let (s2, a2) = training_pairs(&train, &demos);
+        assert_eq!(s2, s);
+        assert_eq!(a2, smoothed_actions(&demos.lengths(), a.view(), 2));
+        assert_ne!(a2, a);
+    }
+
+    #[test]
+    fn a_reward_on_states_reads_no_action_and_only_red_and_ae_take_it() {
+        let demos = red_drive::expert_demos(&DriveConfig::default(), 1, 0).unwrap();
+        let (es, ea) = demos.pairs();
+        let mut cfg = DriveTrainConfig {
+            reward_on_states: true,
+            ..DriveTrainConfig::default()
+        };
+        cfg.rnd.epochs = 2;
+        let seeder = method_seeder(0, Method::Red);
+        let (reward, terminal) = fit_reward(
+            &cfg,
+            Method::Red,
+            &seeder,
+            es.view(),
+            ea.view(),
+            &mut crate::Silent,
+        )
+        .unwrap();
+        let r = reward.support().unwrap();
+        assert!(r.states_only());
+        assert!(terminal.is_some());
+        let (v, g) = reward.reward_and_grad(es.view(), ea.view()).unwrap();
+        let zeros = Array2::zeros(ea.raw_dim());
+        assert_eq!(
+            v,
+            reward.reward_and_grad(es.view(), zeros.view()).unwrap().0
+        );
+        assert!(g.iter().all(|x| *x == 0.0));
+        let e = fit_reward(
+            &cfg,
+            Method::Gail,
+            &seeder,
+            es.view(),
+            ea.view(),
+            &mut crate::Silent,
+        )
+        .err()
+        .unwrap();
+        assert!(e.to_string().contains("reward_on_states"), "{e}");
     }
 }

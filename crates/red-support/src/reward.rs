@@ -109,6 +109,10 @@ impl RedRewardConfig {
 pub struct RedReward<M> {
     model: M,
     sigma1: f64,
+    /// Whether every pair is scored with its action set to 0 (see
+    /// [`RedReward::on_states_only`]).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    states_only: bool,
 }
 
 impl<M: SupportModel> RedReward<M> {
@@ -121,7 +125,26 @@ impl<M: SupportModel> RedReward<M> {
             sigma1: Sigma1::Fixed(sigma1),
         }
         .validate()?;
-        Ok(Self { model, sigma1 })
+        Ok(Self {
+            model,
+            sigma1,
+            states_only: false,
+        })
+    }
+
+    /// The same reward read on the state only (our addition): every pair
+    /// is scored with its action replaced by zeros, so `r(s, a) = r(s, 0)`
+    /// and `dr/da = 0`. For a model fitted on the expert's states with
+    /// zero actions, this is RED on states: it rewards being where the
+    /// expert was, whatever action led there.
+    pub fn on_states_only(mut self, states_only: bool) -> Self {
+        self.states_only = states_only;
+        self
+    }
+
+    /// Whether the reward reads the state only ([`RedReward::on_states_only`]).
+    pub fn states_only(&self) -> bool {
+        self.states_only
     }
 
     /// The reward with `σ1` set by `config`; a calibrated `σ1` is computed
@@ -153,7 +176,11 @@ impl<M: SupportModel> RedReward<M> {
                 )?
             }
         };
-        Ok(Self { model, sigma1 })
+        Ok(Self {
+            model,
+            sigma1,
+            states_only: false,
+        })
     }
 
     /// `σ1`.
@@ -180,6 +207,13 @@ impl<M: SupportModel> RedReward<M> {
         states: ArrayView2<'_, f64>,
         actions: ArrayView2<'_, f64>,
     ) -> Result<Array1<f64>> {
+        let zeros;
+        let actions = if self.states_only {
+            zeros = Array2::zeros(actions.raw_dim());
+            zeros.view()
+        } else {
+            actions
+        };
         let mut r = self.model.score(states, actions)?;
         r.mapv_inplace(|l| (-self.sigma1 * l).exp());
         Ok(r)
@@ -195,6 +229,10 @@ impl<M: SupportModel> RedReward<M> {
         states: ArrayView2<'_, f64>,
         actions: ArrayView2<'_, f64>,
     ) -> Result<(Array1<f64>, Array2<f64>)> {
+        if self.states_only {
+            let r = self.reward(states, actions)?;
+            return Ok((r, Array2::zeros(actions.raw_dim())));
+        }
         let (scores, mut g) = self.model.score_grad_action(states, actions)?;
         let r = scores.mapv(|l| (-self.sigma1 * l).exp());
         let factor = r.mapv(|v| -self.sigma1 * v);

@@ -302,3 +302,35 @@ fn terminal_heuristic_penalises_endings_off_the_support() {
         "only {penalised} of 20 off-support endings penalised"
     );
 }
+
+#[test]
+fn a_reward_on_states_only_ignores_the_action_and_survives_save_and_load() {
+    use red_core::DifferentiableReward;
+    let support = &supports()[2];
+    let (s, a) = support.inside(80, 3);
+    let zeros = Array2::zeros(a.raw_dim());
+    let model = fit(&estimators()[0], &s, &zeros, 4);
+    let full = RedReward::with_sigma1(model, 5.0).unwrap();
+    assert!(!full.states_only());
+    let on_states = full.clone().on_states_only(true);
+    let at_zero = full.rewards(s.view(), zeros.view()).unwrap();
+    // Any action gives the reward of the zero action, with no gradient.
+    let (r, g) = on_states.reward_and_grad(s.view(), a.view()).unwrap();
+    assert_eq!(r, at_zero);
+    assert!(g.iter().all(|v| *v == 0.0));
+    assert_eq!(on_states.rewards(s.view(), a.view()).unwrap(), at_zero);
+    // The full reward does see the action.
+    assert_ne!(full.rewards(s.view(), a.view()).unwrap(), at_zero);
+    // The flag is saved; a file written before it existed reads as off.
+    let text = serde_json::to_string(&on_states).unwrap();
+    let back: RedReward<FittedEstimator> = serde_json::from_str(&text).unwrap();
+    assert_eq!(back, on_states);
+    let old: RedReward<FittedEstimator> =
+        serde_json::from_str(&serde_json::to_string(&full).unwrap()).unwrap();
+    assert!(!old.states_only());
+    assert!(
+        !serde_json::to_string(&full)
+            .unwrap()
+            .contains("states_only")
+    );
+}
