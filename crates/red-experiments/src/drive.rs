@@ -236,6 +236,14 @@ pub struct DriveTrainConfig {
     /// start still use the actions. GAIL and GMMIL refuse it.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub reward_on_states: bool,
+    /// The seed of the methods' reward fits (our addition, for
+    /// diagnosis): `None`, the default, fits each reward from the run's
+    /// seed; `Some(k)` fits it as run seed `k` would, while the warm
+    /// start, the learner and the evaluation keep the run's seed. Pairing
+    /// rewards and learners of different seeds tells whether a failing
+    /// run's outcome follows its reward or its learner.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reward_seed: Option<u64>,
 }
 
 fn is_zero_usize(v: &usize) -> bool {
@@ -376,6 +384,7 @@ impl Default for DriveTrainConfig {
             penalise_every_crash: false,
             demo_action_smoothing: 0,
             reward_on_states: false,
+            reward_seed: None,
         }
     }
 }
@@ -1777,7 +1786,8 @@ fn start_method(
 ) -> Result<MethodState> {
     let m: Method = method.parse().map_err(|e: String| invalid("methods", e))?;
     let seeder = method_seeder(run.seed, m);
-    let (reward, terminal) = fit_reward(&run.train, m, &seeder, es, ea, progress)?;
+    let reward_seeder = method_seeder(run.train.reward_seed.unwrap_or(run.seed), m);
+    let (reward, terminal) = fit_reward(&run.train, m, &reward_seeder, es, ea, progress)?;
     let mut rng = seeder.rng(Stream::Exploration);
     let svg = match run.train.learner {
         DriveLearner::Svg => {
@@ -2682,5 +2692,35 @@ mod tests {
         .err()
         .unwrap();
         assert!(e.to_string().contains("reward_on_states"), "{e}");
+    }
+
+    #[test]
+    fn a_reward_seed_fits_the_reward_of_that_seed_and_keeps_the_runs_learner() {
+        let demos = red_drive::expert_demos(&DriveConfig::default(), 1, 0).unwrap();
+        let (es, ea) = demos.pairs();
+        let warm = GaussianPolicy::new(
+            &GaussianPolicyConfig::default(),
+            es.ncols(),
+            ea.ncols(),
+            None,
+            &mut Seeder::new(0).rng(Stream::Init),
+        )
+        .unwrap();
+        let start = |seed: u64, reward_seed: Option<u64>| {
+            let mut run = DriveRunConfig::new("demo.json", DriveConfig::default());
+            run.seed = seed;
+            run.train.rnd.epochs = 2;
+            run.train.reward_seed = reward_seed;
+            let s = start_method(&run, "red", &warm, es.view(), ea.view(), &mut crate::Silent);
+            let s = s.unwrap();
+            let r = s.reward.reward_and_grad(es.view(), ea.view()).unwrap().0;
+            (r, s.rng.clone())
+        };
+        let (r0, rng0) = start(0, None);
+        let (r3, _) = start(3, None);
+        let (mixed, rng_mixed) = start(0, Some(3));
+        assert_ne!(r0, r3);
+        assert_eq!(mixed, r3);
+        assert_eq!(rng_mixed, rng0);
     }
 }
