@@ -1,0 +1,109 @@
+//! Diagnosis: RED's driving reward as run seed K fits it (the defaults'
+//! RND, `σ1` and terminal heuristic, the run's estimator stream), read
+//! along the episodes of saved final policies on the demo's road.
+//! `cargo run --release -p red-experiments --example drive_reward_probe --
+//! DEMO --seeds 1,3,4 RUN_DIR...`: for each reward seed, `σ1` and for each
+//! run folder's final RED policy (reset seed 1000, the evaluation's first
+//! episode) the distance, the mean reward of the episode, of its last 40
+//! steps and of its last pair, and whether the paper's terminal test
+//! penalises the ending.
+use ndarray::Array2;
+use red_core::{Env, Seeder, Stream, record_episode};
+use red_drive::make_env;
+use red_experiments::drive::{DriveTrainConfig, EVAL_SEED, load_demo, load_run_policy};
+use red_experiments::imitation::{Method, RewardSettings, fit_reward};
+use red_support::{ExpertScores, Sigma1, TerminalHeuristic};
+
+type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
+
+fn main() -> AnyResult<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let demo_path = std::path::PathBuf::from(&args[0]);
+    let seeds: Vec<u64> = args[2].split(',').map(|s| s.parse()).collect::<Result<_, _>>()?;
+    let runs = &args[3..];
+    let mut episodes = Vec::new();
+    let mut road = None;
+    for d in runs {
+        let (run, policy) = load_run_policy(std::path::Path::new(d), "red", false)?;
+        let mut env = make_env(&run.drive)?;
+        let (obs, _) = env.reset(Some(EVAL_SEED))?;
+        let (t, r) = record_episode(
+            &mut env,
+            obs,
+            None,
+            |_, o| -> Result<Vec<f64>, Box<dyn std::error::Error>> {
+                Ok(policy.act_deterministic(o)?)
+            },
+            |_, _| Ok(()),
+        )?;
+        road.get_or_insert(run.drive.clone());
+        episodes.push((d.clone(), t, r));
+    }
+    let road = road.ok_or("give at least one run folder")?;
+    let (demos, _, _) = load_demo(&demo_path, Some(road), false)?;
+    let (es, ea) = demos.pairs();
+    let cfg = DriveTrainConfig::default();
+    for &seed in &seeds {
+        let seeder = Seeder::new(Seeder::new(seed).derive(Stream::Other(0)));
+        let settings = RewardSettings {
+            rnd: &cfg.rnd,
+            autoencoder: &cfg.autoencoder,
+            sigma1: Sigma1::Calibrated {
+                quantile: cfg.sigma1.quantile,
+                reward: cfg.sigma1.reward,
+            },
+            scores: ExpertScores::HeldOut {
+                folds: cfg.sigma1.folds,
+            },
+            gail: &cfg.gail,
+            gmmil: &cfg.gmmil,
+        };
+        let mut rng = seeder.rng(Stream::Estimator);
+        let reward = fit_reward(
+            Method::Red,
+            &settings,
+            es.view(),
+            ea.view(),
+            &mut rng,
+            seeder.derive(Stream::Estimator),
+        )?
+        .ok_or("no reward")?;
+        let r = reward.support().ok_or("not RED")?;
+        let term = TerminalHeuristic::new(&cfg.terminal, r, es.view(), ea.view())?;
+        println!(
+            "reward seed {seed}: sigma1 {:.1}, mean demo reward {:.3}",
+            r.sigma1(),
+            term.expert_mean_reward()
+        );
+        for (d, t, run) in &episodes {
+            let n = t.observations.len();
+            let s = Array2::from_shape_fn((n, es.ncols()), |(i, j)| t.observations[i][j]);
+            let a = Array2::from_shape_fn((n, ea.ncols()), |(i, j)| t.actions[i][j]);
+            let v = r.reward(s.view(), a.view())?;
+            let k = n.saturating_sub(40);
+            let tail = v.slice(ndarray::s![k..]).mean().unwrap_or(f64::NAN);
+            let last = v[n - 1];
+            println!(
+                "  {d}: {:.1} m, mean reward {:.3}, last 40 steps {tail:.3}, last pair {last:.3}, \
+                 terminal penalty {:.1}",
+                run.true_return,
+                v.mean().unwrap_or(f64::NAN),
+                term.penalty(last)
+            );
+            if std::env::var_os("PROBE_CHUNKS").is_some() {
+                // Mean reward and lateral offset (m) per 50 steps.
+                let line: Vec<String> = (0..n)
+                    .step_by(50)
+                    .map(|c| {
+                        let e = (c + 50).min(n);
+                        let rm = v.slice(ndarray::s![c..e]).mean().unwrap_or(f64::NAN);
+                        let y = s.slice(ndarray::s![c..e, 20]).mean().unwrap_or(f64::NAN) * 5.25;
+                        format!("{rm:.2}@{y:+.1}")
+                    })
+                    .collect();
+                println!("    {}", line.join(" "));
+            }
+        }
+    }
+    Ok(())
+}
