@@ -19,7 +19,10 @@ type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
 fn main() -> AnyResult<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let demo_path = std::path::PathBuf::from(&args[0]);
-    let seeds: Vec<u64> = args[2].split(',').map(|s| s.parse()).collect::<Result<_, _>>()?;
+    let seeds: Vec<u64> = args[2]
+        .split(',')
+        .map(|s| s.parse())
+        .collect::<Result<_, _>>()?;
     let runs = &args[3..];
     let mut episodes = Vec::new();
     let mut road = None;
