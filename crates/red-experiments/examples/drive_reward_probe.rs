@@ -18,6 +18,9 @@ type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
 
 fn main() -> AnyResult<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.len() < 4 || args[1] != "--seeds" {
+        return Err("usage: drive_reward_probe DEMO --seeds 1,3,4 RUN_DIR...".into());
+    }
     let demo_path = std::path::PathBuf::from(&args[0]);
     let seeds: Vec<u64> = args[2]
         .split(',')
