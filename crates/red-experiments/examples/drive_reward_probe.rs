@@ -8,11 +8,10 @@
 //! steps and of its last pair, and whether the paper's terminal test
 //! penalises the ending.
 use ndarray::Array2;
-use red_core::{Env, Seeder, Stream, record_episode};
+use red_core::{Env, record_episode};
 use red_drive::make_env;
-use red_experiments::drive::{DriveTrainConfig, EVAL_SEED, load_demo, load_run_policy};
-use red_experiments::imitation::{Method, RewardSettings, fit_reward};
-use red_support::{ExpertScores, Sigma1, TerminalHeuristic};
+use red_experiments::drive::{DriveTrainConfig, EVAL_SEED, load_demo, load_run_policy, run_reward};
+use red_experiments::imitation::Method;
 
 type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
 
@@ -50,32 +49,9 @@ fn main() -> AnyResult<()> {
     let (es, ea) = demos.pairs();
     let cfg = DriveTrainConfig::default();
     for &seed in &seeds {
-        let seeder = Seeder::new(Seeder::new(seed).derive(Stream::Other(0)));
-        let settings = RewardSettings {
-            rnd: &cfg.rnd,
-            autoencoder: &cfg.autoencoder,
-            sigma1: Sigma1::Calibrated {
-                quantile: cfg.sigma1.quantile,
-                reward: cfg.sigma1.reward,
-            },
-            scores: ExpertScores::HeldOut {
-                folds: cfg.sigma1.folds,
-            },
-            gail: &cfg.gail,
-            gmmil: &cfg.gmmil,
-        };
-        let mut rng = seeder.rng(Stream::Estimator);
-        let reward = fit_reward(
-            Method::Red,
-            &settings,
-            es.view(),
-            ea.view(),
-            &mut rng,
-            seeder.derive(Stream::Estimator),
-        )?
-        .ok_or("no reward")?;
+        let (reward, term) = run_reward(&cfg, Method::Red, seed, es.view(), ea.view())?;
         let r = reward.support().ok_or("not RED")?;
-        let term = TerminalHeuristic::new(&cfg.terminal, r, es.view(), ea.view())?;
+        let term = term.ok_or("no terminal heuristic")?;
         println!(
             "reward seed {seed}: sigma1 {:.1}, mean demo reward {:.3}",
             r.sigma1(),

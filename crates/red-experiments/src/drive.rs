@@ -1463,6 +1463,25 @@ fn method_seeder(seed: u64, method: Method) -> Seeder {
     Seeder::new(Seeder::new(seed).derive(Stream::Other(k)))
 }
 
+/// The reward (with RED's and AE's terminal heuristic) that a run of
+/// seed `seed` fits for `method` on the pairs `es`, `ea` with the
+/// settings `cfg`, as `red-cli drive` does; for diagnosis
+/// (`examples/drive_reward_probe.rs`).
+///
+/// # Errors
+/// As the run's fit: bad settings, too few pairs, a method without a
+/// reward.
+pub fn run_reward(
+    cfg: &DriveTrainConfig,
+    method: Method,
+    seed: u64,
+    es: ArrayView2<'_, f64>,
+    ea: ArrayView2<'_, f64>,
+) -> Result<(ImitationReward, Option<TerminalHeuristic>)> {
+    let seeder = method_seeder(cfg.reward_seed.unwrap_or(seed), method);
+    fit_reward(cfg, method, &seeder, es, ea, &mut crate::Silent)
+}
+
 /// Fits the method's reward ([`crate::imitation::fit_reward`], `σ1` from
 /// held-out expert scores) and, for RED and AE, the terminal heuristic.
 fn fit_reward(
