@@ -215,6 +215,14 @@ pub struct DriveTrainConfig {
     /// Off by default.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub penalise_every_crash: bool,
+    /// No terminal penalty when an episode ends at the road's end (our
+    /// addition, off by default). The paper's test (Eq. 8) looks only at
+    /// the last pair's reward, so a finish whose last pair scores below
+    /// `σ3 r̄` costs as much as a crash; the self-imitation term and the
+    /// checks then rank such finishes below crashes that end on
+    /// expert-like pairs (docs/results/drive.md, session 40).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub spare_the_finish: bool,
     /// Smooth the demonstration's actions before any method learns from
     /// them (our addition, 0 = off, the default): each action becomes the
     /// mean of the actions up to this many steps before and after it in
@@ -387,6 +395,7 @@ impl Default for DriveTrainConfig {
             train_start_lateral_noise: None,
             train_start_heading_noise: None,
             penalise_every_crash: false,
+            spare_the_finish: false,
             demo_action_smoothing: 0,
             reward_on_states: false,
             reward_seed: None,
@@ -1087,17 +1096,31 @@ struct Rollout {
     path: EvalPath,
 }
 
+/// How the terminal heuristic treats an episode's end: the paper's test,
+/// changed by `train.penalise_every_crash` and `train.spare_the_finish`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct EndRule {
+    every_crash: bool,
+    spare_finish: bool,
+}
+
+impl EndRule {
+    fn of(cfg: &DriveTrainConfig) -> Self {
+        Self {
+            every_crash: cfg.penalise_every_crash,
+            spare_finish: cfg.spare_the_finish,
+        }
+    }
+}
+
 /// The terminal heuristic's addition at an episode's end whose last pair
 /// has reward `final_reward` and whose last step reported `info`: the
-/// paper's test, or the full penalty at a crash when `every_crash`
-/// (`train.penalise_every_crash`).
-fn terminal_penalty(
-    t: &TerminalHeuristic,
-    final_reward: f64,
-    info: &Info,
-    every_crash: bool,
-) -> f64 {
-    if every_crash && info.get(INFO_COLLISION) == Some(1.0) {
+/// paper's test; nothing at a finish when `rule.spare_finish`; the full
+/// penalty at a crash when `rule.every_crash`.
+fn terminal_penalty(t: &TerminalHeuristic, final_reward: f64, info: &Info, rule: EndRule) -> f64 {
+    if rule.spare_finish && info.get(INFO_SUCCESS) == Some(1.0) {
+        0.0
+    } else if rule.every_crash && info.get(INFO_COLLISION) == Some(1.0) {
         t.full_penalty()
     } else {
         t.penalty(final_reward)
@@ -1106,13 +1129,13 @@ fn terminal_penalty(
 
 /// Drives `policy` deterministically from reset seed `seed`; the own return
 /// is the sum of `reward` plus `terminal` of the last reward, when given
-/// (with [`terminal_penalty`]'s rule for crashes when `every_crash`).
+/// (with [`terminal_penalty`]'s `rule`).
 fn rollout(
     config: &DriveConfig,
     policy: &GaussianPolicy,
     seed: u64,
     reward: Option<(&dyn DifferentiableReward, Option<&TerminalHeuristic>)>,
-    every_crash: bool,
+    rule: EndRule,
 ) -> Result<Rollout> {
     let mut env = make_env(config)?;
     let (obs, _) = env.reset(Some(seed))?;
@@ -1147,7 +1170,7 @@ fn rollout(
         let (rw, _) = r.reward_and_grad(st.view(), ac.view())?;
         own_return = rw.sum();
         if let (Some(t), Some(last)) = (term, rw.last()) {
-            own_return += terminal_penalty(t, *last, &run.last.info, every_crash);
+            own_return += terminal_penalty(t, *last, &run.last.info, rule);
         }
     }
     Ok(Rollout {
@@ -1170,7 +1193,7 @@ pub fn evaluate(
     let mut distances = Vec::new();
     let mut paths = Vec::new();
     for i in 0..runs {
-        let r = rollout(road, policy, EVAL_SEED + i as u64, None, false)?;
+        let r = rollout(road, policy, EVAL_SEED + i as u64, None, EndRule::default())?;
         distances.push(r.distance);
         paths.push(r.path);
     }
@@ -1595,7 +1618,7 @@ impl MethodHooks<'_> {
                 policy,
                 SELECT_SEED + k as u64,
                 Some((&*self.reward, self.terminal)),
-                cfg.penalise_every_crash,
+                EndRule::of(cfg),
             )?;
             own += r.own_return / cfg.select_episodes as f64;
             dist += r.distance / cfg.select_episodes as f64;
@@ -1756,11 +1779,11 @@ fn train_method(
         curve,
         checks,
     } = st;
-    let every_crash = cfg.penalise_every_crash;
+    let rule = EndRule::of(cfg);
     let term = |r: f64, info: &Info| {
         terminal
             .as_ref()
-            .map_or(0.0, |t| terminal_penalty(t, r, info, every_crash))
+            .map_or(0.0, |t| terminal_penalty(t, r, info, rule))
     };
     let mut hooks = MethodHooks {
         run,
@@ -2564,15 +2587,36 @@ mod tests {
         assert_eq!(crash.get(INFO_COLLISION), Some(1.0));
         // An in-support final pair (reward 0.9 >= 0.5 * 0.8): the paper's
         // test lets the crash go; the option does not.
-        assert_eq!(terminal_penalty(&t, 0.9, &crash, false), 0.0);
-        assert_eq!(terminal_penalty(&t, 0.9, &crash, true), -8.0);
-        assert_eq!(terminal_penalty(&t, 0.1, &crash, true), -8.0);
-        // The road's end keeps the paper's test with the option on.
+        let paper = EndRule::default();
+        let every = EndRule {
+            every_crash: true,
+            ..paper
+        };
+        let spare = EndRule {
+            spare_finish: true,
+            ..paper
+        };
+        assert_eq!(terminal_penalty(&t, 0.9, &crash, paper), 0.0);
+        assert_eq!(terminal_penalty(&t, 0.9, &crash, every), -8.0);
+        assert_eq!(terminal_penalty(&t, 0.1, &crash, every), -8.0);
+        // Sparing the finish leaves crashes to the paper's test.
+        assert_eq!(terminal_penalty(&t, 0.1, &crash, spare), -8.0);
+        assert_eq!(terminal_penalty(&t, 0.9, &crash, spare), 0.0);
+        // The road's end keeps the paper's test with `every_crash` on, and
+        // costs nothing when the finish is spared.
         let mut finish = Info::new();
         finish.set(INFO_SUCCESS, 1.0);
         finish.set(INFO_COLLISION, 0.0);
-        assert_eq!(terminal_penalty(&t, 0.9, &finish, true), 0.0);
-        assert_eq!(terminal_penalty(&t, 0.1, &finish, true), -8.0);
+        assert_eq!(terminal_penalty(&t, 0.9, &finish, every), 0.0);
+        assert_eq!(terminal_penalty(&t, 0.1, &finish, every), -8.0);
+        assert_eq!(terminal_penalty(&t, 0.1, &finish, paper), -8.0);
+        assert_eq!(terminal_penalty(&t, 0.1, &finish, spare), 0.0);
+        let both = EndRule {
+            every_crash: true,
+            spare_finish: true,
+        };
+        assert_eq!(terminal_penalty(&t, 0.1, &finish, both), 0.0);
+        assert_eq!(terminal_penalty(&t, 0.9, &crash, both), -8.0);
     }
 
     #[test]
