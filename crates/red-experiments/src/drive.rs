@@ -220,7 +220,9 @@ pub struct DriveTrainConfig {
     /// the last pair's reward, so a finish whose last pair scores below
     /// `σ3 r̄` costs as much as a crash; the self-imitation term and the
     /// checks then rank such finishes below crashes that end on
-    /// expert-like pairs (docs/results/drive.md, session 40).
+    /// expert-like pairs (docs/results/drive.md, session 40). Measured on
+    /// RED, four demos, seeds 0-4 (session 40): -3.1 points of the demo's
+    /// road (s.e. 4.2), -3.5 of unseen roads (4.9), so it stays off.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub spare_the_finish: bool,
     /// Smooth the demonstration's actions before any method learns from
