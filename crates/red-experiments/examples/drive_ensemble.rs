@@ -17,7 +17,7 @@ fn distance(road: &DriveConfig, policies: &[&GaussianPolicy], seed: u64) -> AnyR
         obs,
         None,
         |_, o| -> Result<Vec<f64>, Box<dyn std::error::Error>> {
-            let mut mean = vec![0.0; 2];
+            let mut mean = vec![0.0; red_drive::ACT_DIM];
             for p in policies {
                 let a = p.act_deterministic(o)?;
                 for (m, v) in mean.iter_mut().zip(a) {

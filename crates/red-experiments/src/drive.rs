@@ -1503,16 +1503,16 @@ pub fn run_reward(
     es: ArrayView2<'_, f64>,
     ea: ArrayView2<'_, f64>,
 ) -> Result<(ImitationReward, Option<TerminalHeuristic>)> {
-    let seeder = method_seeder(cfg.reward_seed.unwrap_or(seed), method);
-    fit_reward(cfg, method, &seeder, es, ea, &mut crate::Silent)
+    fit_reward(cfg, method, seed, es, ea, &mut crate::Silent)
 }
 
 /// Fits the method's reward ([`crate::imitation::fit_reward`], `σ1` from
-/// held-out expert scores) and, for RED and AE, the terminal heuristic.
+/// held-out expert scores) and, for RED and AE, the terminal heuristic,
+/// from the method's streams of run seed `seed` (or of `cfg.reward_seed`).
 fn fit_reward(
     cfg: &DriveTrainConfig,
     m: Method,
-    seeder: &Seeder,
+    seed: u64,
     es: ArrayView2<'_, f64>,
     ea: ArrayView2<'_, f64>,
     progress: &mut dyn Progress,
@@ -1541,6 +1541,7 @@ fn fit_reward(
         gail: &cfg.gail,
         gmmil: &cfg.gmmil,
     };
+    let seeder = method_seeder(cfg.reward_seed.unwrap_or(seed), m);
     let mut rng = seeder.rng(Stream::Estimator);
     let gail_seed = seeder.derive(Stream::Estimator);
     let zeros;
@@ -1835,8 +1836,7 @@ fn start_method(
 ) -> Result<MethodState> {
     let m: Method = method.parse().map_err(|e: String| invalid("methods", e))?;
     let seeder = method_seeder(run.seed, m);
-    let reward_seeder = method_seeder(run.train.reward_seed.unwrap_or(run.seed), m);
-    let (reward, terminal) = fit_reward(&run.train, m, &reward_seeder, es, ea, progress)?;
+    let (reward, terminal) = fit_reward(&run.train, m, run.seed, es, ea, progress)?;
     let mut rng = seeder.rng(Stream::Exploration);
     let svg = match run.train.learner {
         DriveLearner::Svg => {
@@ -2731,11 +2731,10 @@ mod tests {
             ..DriveTrainConfig::default()
         };
         cfg.rnd.epochs = 2;
-        let seeder = method_seeder(0, Method::Red);
         let (reward, terminal) = fit_reward(
             &cfg,
             Method::Red,
-            &seeder,
+            0,
             es.view(),
             ea.view(),
             &mut crate::Silent,
@@ -2754,7 +2753,7 @@ mod tests {
         let e = fit_reward(
             &cfg,
             Method::Gail,
-            &seeder,
+            0,
             es.view(),
             ea.view(),
             &mut crate::Silent,
