@@ -67,6 +67,20 @@ impl Batch {
     }
 }
 
+/// What an `n`-step value target needs beyond a [`Batch`] row: see
+/// [`ReplayBuffer::sample_with_tail`]. The target of row `i` is
+/// `rewards[i] + later_rewards[i] + discount[i] * V(boot_states[i])`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NStepTail {
+    /// `sum_(k=1..m-1) gamma^k r_(i+k)` over the `m - 1` later steps
+    /// followed (0 when none).
+    pub later_rewards: Vec<f64>,
+    /// The next state of the chain's last row `(b, obs_dim)`.
+    pub boot_states: Array2<f64>,
+    /// `gamma^m`, or 0 when the chain ended in a terminated row.
+    pub discount: Vec<f64>,
+}
+
 /// Ring buffer of `(s, a, r, s', terminated)` transitions; see the module
 /// documentation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -357,6 +371,12 @@ impl ReplayBuffer {
     /// # Errors
     /// [`Error::InvalidConfig`] if the buffer is empty or `batch` is 0.
     pub fn sample<R: Rng + ?Sized>(&self, batch: usize, rng: &mut R) -> Result<Batch> {
+        Ok(self.rows(&self.draw_rows(batch, rng)?))
+    }
+
+    /// `batch` row indices drawn uniformly with replacement, one
+    /// `random_range(0..len)` each.
+    fn draw_rows<R: Rng + ?Sized>(&self, batch: usize, rng: &mut R) -> Result<Vec<usize>> {
         let len = self.len();
         if len == 0 || batch == 0 {
             return Err(Error::InvalidConfig {
@@ -364,6 +384,12 @@ impl ReplayBuffer {
                 reason: format!("cannot draw {batch} transitions from {len} held"),
             });
         }
+        Ok((0..batch).map(|_| rng.random_range(0..len)).collect())
+    }
+
+    /// The stored rows `rows` as a [`Batch`], in that order.
+    fn rows(&self, rows: &[usize]) -> Batch {
+        let batch = rows.len();
         let (o, a) = (self.obs_dim, self.act_dim);
         let mut out = Batch {
             states: Array2::zeros((batch, o)),
@@ -374,8 +400,7 @@ impl ReplayBuffer {
             terminated: Vec::with_capacity(batch),
             behaviour_logp: Vec::new(),
         };
-        for r in 0..batch {
-            let i = rng.random_range(0..len);
+        for (r, &i) in rows.iter().enumerate() {
             for j in 0..o {
                 out.states[[r, j]] = self.states[i * o + j];
                 out.next_states[[r, j]] = self.next_states[i * o + j];
@@ -390,7 +415,77 @@ impl ReplayBuffer {
                 out.behaviour_logp.push(l[i]);
             }
         }
-        Ok(out)
+        out
+    }
+
+    /// Draws `batch` transitions exactly as [`ReplayBuffer::sample`] does
+    /// (the same generator calls, so the same rows) and, for each, follows
+    /// its episode for up to `n` steps in storage order: the
+    /// [`NStepTail`] of an `n`-step value target `r_i + sum_(k=1..m-1)
+    /// gamma^k r_(i+k) + gamma^m V(s'_(i+m-1))`. A row continues into the
+    /// next stored row when it did not terminate, the next row is not the
+    /// oldest one (the ring's seam) nor beyond the newest, and the next
+    /// row's state equals this row's next state number for number (a reset
+    /// starts elsewhere, so a truncated episode stops the chain there and
+    /// bootstraps). A chain that reaches a terminated row has discount 0.
+    /// The later rewards are the stored ones (imitation reward plus the
+    /// terminal adjustment). `n = 1` gives zero later rewards, the row's
+    /// own next state and discount `gamma` (0 if terminated).
+    ///
+    /// # Errors
+    /// As [`ReplayBuffer::sample`]; [`Error::InvalidConfig`] if `n` is 0.
+    pub fn sample_with_tail<R: Rng + ?Sized>(
+        &self,
+        batch: usize,
+        n: usize,
+        gamma: f64,
+        rng: &mut R,
+    ) -> Result<(Batch, NStepTail)> {
+        if n == 0 {
+            return Err(Error::InvalidConfig {
+                field: "n".into(),
+                reason: "an n-step target needs n >= 1".into(),
+            });
+        }
+        let rows = self.draw_rows(batch, rng)?;
+        let (len, o) = (self.len(), self.obs_dim);
+        let full = len == self.capacity;
+        let mut tail = NStepTail {
+            later_rewards: Vec::with_capacity(batch),
+            boot_states: Array2::zeros((batch, o)),
+            discount: Vec::with_capacity(batch),
+        };
+        let newest = (self.next + self.capacity - 1) % self.capacity;
+        for (r, &i) in rows.iter().enumerate() {
+            let (mut last, mut later, mut disc) = (i, 0.0, gamma);
+            for _ in 1..n {
+                if self.terminated[last] || last == newest {
+                    break;
+                }
+                let j = if full {
+                    (last + 1) % self.capacity
+                } else {
+                    last + 1
+                };
+                if j >= len
+                    || self.next_states[last * o..(last + 1) * o] != self.states[j * o..(j + 1) * o]
+                {
+                    break;
+                }
+                later += disc * self.rewards[j];
+                disc *= gamma;
+                last = j;
+            }
+            if self.terminated[last] {
+                disc = 0.0;
+            }
+            for k in 0..o {
+                tail.boot_states[[r, k]] = self.next_states[last * o + k];
+            }
+            tail.later_rewards.push(later);
+            tail.discount.push(disc);
+        }
+        Ok((self.rows(&rows), tail))
     }
 
     /// Recomputes every stored reward with `f`, which maps a batch of states
@@ -457,6 +552,88 @@ impl ReplayBuffer {
 mod tests {
     use super::*;
     use rand::SeedableRng;
+
+    /// Pushes an episode of states `x0, x0 + 1, ...` (one number each),
+    /// rewards `r`, the last step terminated or not.
+    fn push_episode(b: &mut ReplayBuffer, x0: f64, r: &[f64], terminated: bool) {
+        for (k, &rk) in r.iter().enumerate() {
+            let x = x0 + k as f64;
+            let last = k + 1 == r.len();
+            b.push(&[x], &[0.0], rk, &[x + 1.0], last && terminated)
+                .unwrap();
+        }
+    }
+
+    /// Every drawn row's tail against `expect(state) -> (later, discount,
+    /// boot state)`.
+    fn check_tails(b: &ReplayBuffer, n: usize, expect: impl Fn(f64) -> (f64, f64, f64)) {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let (batch, tail) = b.sample_with_tail(300, n, 0.5, &mut rng).unwrap();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        assert_eq!(
+            batch,
+            b.sample(300, &mut rng).unwrap(),
+            "the same rows as sample"
+        );
+        let mut seen = std::collections::BTreeSet::new();
+        for r in 0..300 {
+            let x = batch.states[[r, 0]];
+            seen.insert(x as i64);
+            let (later, disc, boot) = expect(x);
+            assert!(
+                (tail.later_rewards[r] - later).abs() < 1e-12,
+                "later at {x}"
+            );
+            assert!((tail.discount[r] - disc).abs() < 1e-12, "discount at {x}");
+            assert_eq!(tail.boot_states[[r, 0]], boot, "boot state at {x}");
+        }
+        assert_eq!(seen.len(), b.len(), "every row drawn");
+    }
+
+    #[test]
+    fn n_step_tails_follow_the_episode_and_stop_at_its_end() {
+        let mut b = ReplayBuffer::new(100, 1, 1).unwrap();
+        // Episode A: states 0..4, rewards 1..5, terminated at state 4.
+        push_episode(&mut b, 0.0, &[1.0, 2.0, 3.0, 4.0, 5.0], true);
+        // Episode B: states 10, 11, truncated (not terminated).
+        push_episode(&mut b, 10.0, &[7.0, 8.0], false);
+        // Episode C: states 20, 21, still running (the newest row is 21).
+        push_episode(&mut b, 20.0, &[9.0, 6.0], false);
+        check_tails(&b, 1, |x| {
+            let disc = if x == 4.0 { 0.0 } else { 0.5 };
+            (0.0, disc, x + 1.0)
+        });
+        check_tails(&b, 3, |x| match x as i64 {
+            0 => (0.5 * 2.0 + 0.25 * 3.0, 0.125, 3.0),
+            1 => (0.5 * 3.0 + 0.25 * 4.0, 0.125, 4.0),
+            2 => (0.5 * 4.0 + 0.25 * 5.0, 0.0, 5.0),
+            3 => (0.5 * 5.0, 0.0, 5.0),
+            4 => (0.0, 0.0, 5.0),
+            10 => (0.5 * 8.0, 0.25, 12.0),
+            // B was cut by time: its chain stops and bootstraps.
+            11 => (0.0, 0.5, 12.0),
+            20 => (0.5 * 6.0, 0.25, 22.0),
+            21 => (0.0, 0.5, 22.0),
+            _ => unreachable!(),
+        });
+    }
+
+    #[test]
+    fn n_step_tails_do_not_cross_the_rings_seam() {
+        // Capacity 4: an episode of 6 steps leaves states 2, 3, 4, 5 with
+        // 4 and 5 stored in slots 0 and 1, 2 and 3 in slots 2 and 3.
+        let mut b = ReplayBuffer::new(4, 1, 1).unwrap();
+        push_episode(&mut b, 0.0, &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0], false);
+        check_tails(&b, 4, |x| match x as i64 {
+            2 => (0.5 * 4.0 + 0.25 * 5.0 + 0.125 * 6.0, 0.0625, 6.0),
+            3 => (0.5 * 5.0 + 0.25 * 6.0, 0.125, 6.0),
+            4 => (0.5 * 6.0, 0.25, 6.0),
+            5 => (0.0, 0.5, 6.0),
+            _ => unreachable!(),
+        });
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+        assert!(b.sample_with_tail(4, 0, 0.5, &mut rng).is_err());
+    }
 
     #[test]
     fn ring_overwrites_oldest_and_recent_is_ordered() {

@@ -41,7 +41,7 @@ use red_nets::{
 use crate::episodic::{EpisodeLog, EpisodicLearner, one_row};
 pub use crate::episodic::{EpisodeOutcome, EpisodeReport};
 use crate::policy::{GaussianPolicy, PolicyWorkspace};
-use crate::replay::{Batch, ReplayBuffer};
+use crate::replay::{Batch, NStepTail, ReplayBuffer};
 use crate::{Error, Result};
 
 // The trait lives beside `RewardModel` in red-core; re-exported here where
@@ -142,6 +142,20 @@ pub struct SvgConfig {
     pub sil_weight: f64,
     /// Episodes kept for `sil_weight`.
     pub sil_episodes: usize,
+    /// Steps of the value function's target (our addition; Heess et al.
+    /// fit `V` by TD(0), which is 1): with `n > 1` the target is the
+    /// stored rewards of up to `n` consecutive steps of the same episode
+    /// and then `gamma^n V_target` (see
+    /// [`ReplayBuffer::sample_with_tail`]), so a crash's penalty reaches
+    /// the states `n` steps before it in one update. The later steps are
+    /// not importance-corrected and their rewards are the stored ones (for
+    /// an adaptive reward, as it was when stored).
+    #[serde(skip_serializing_if = "is_one")]
+    pub value_nstep: usize,
+}
+
+fn is_one(n: &usize) -> bool {
+    *n == 1
 }
 
 impl Default for SvgConfig {
@@ -171,6 +185,7 @@ impl Default for SvgConfig {
             noise_rho: 0.0,
             sil_weight: 0.0,
             sil_episodes: 4,
+            value_nstep: 1,
         }
     }
 }
@@ -207,6 +222,7 @@ impl SvgConfig {
             ("batch_size", self.batch_size),
             ("buffer_size", self.buffer_size),
             ("updates_per_step", self.updates_per_step),
+            ("value_nstep", self.value_nstep),
         ] {
             if v == 0 {
                 return bad(f, "must be at least 1".into());
@@ -620,8 +636,49 @@ impl Svg1 {
     /// # Errors
     /// Shape errors.
     pub fn update_value(&mut self, batch: &SvgBatch, weights: &[f64]) -> Result<f64> {
+        let discount: Vec<f64> = batch
+            .terminated
+            .iter()
+            .map(|&t| if t { 0.0 } else { self.config.gamma })
+            .collect();
+        let later = vec![0.0; discount.len()];
+        self.value_step(batch, &batch.next_states, &later, &discount, weights)
+    }
+
+    /// One importance-weighted `n`-step TD step of the value function
+    /// (`svg.value_nstep`): the target of row `i` is `r_i +
+    /// tail.later_rewards[i] + tail.discount[i] * V_target(tail.boot_states[i])`,
+    /// weighted by row `i`'s importance weight only (the later steps'
+    /// actions are not corrected). Returns the loss; moves the target
+    /// network.
+    ///
+    /// # Errors
+    /// Shape errors.
+    pub fn update_value_nstep(
+        &mut self,
+        batch: &SvgBatch,
+        tail: &NStepTail,
+        weights: &[f64],
+    ) -> Result<f64> {
+        self.value_step(
+            batch,
+            &tail.boot_states,
+            &tail.later_rewards,
+            &tail.discount,
+            weights,
+        )
+    }
+
+    fn value_step(
+        &mut self,
+        batch: &SvgBatch,
+        boot_states: &Array2<f64>,
+        later: &[f64],
+        discount: &[f64],
+        weights: &[f64],
+    ) -> Result<f64> {
         let x = self.policy.prepare_obs(batch.states.view())?;
-        let xn = self.policy.prepare_obs(batch.next_states.view())?;
+        let xn = self.policy.prepare_obs(boot_states.view())?;
         let vn = self.value_target.predict(xn.view());
         let n = batch.rewards.len();
         let mut tape = Tape::new();
@@ -629,12 +686,12 @@ impl Svg1 {
         let mut g = Array2::<f32>::zeros((n, 1));
         let mut loss = 0.0;
         for i in 0..n {
-            let boot = if batch.terminated[i] {
+            let boot = if discount[i] == 0.0 {
                 0.0
             } else {
-                self.config.gamma * vn[[i, 0]] as f64
+                discount[i] * vn[[i, 0]] as f64
             };
-            let d = v[[i, 0]] as f64 - (batch.rewards[i] + boot);
+            let d = v[[i, 0]] as f64 - (batch.rewards[i] + later[i] + boot);
             loss += weights[i] * d * d / n as f64;
             g[[i, 0]] = (2.0 * weights[i] * d / n as f64) as f32;
         }
@@ -843,13 +900,26 @@ impl Svg1 {
         let b = self.sample(bs, rng)?;
         let model_loss = self.update_model(&b)?;
         self.check_finite("SVG model loss", model_loss)?;
-        let mut b = self.sample(bs, rng)?;
+        let (mut b, tail) = if self.config.value_nstep > 1 {
+            let (b, t) = self.replay.sample_with_tail(
+                bs,
+                self.config.value_nstep,
+                self.config.gamma,
+                rng,
+            )?;
+            (b, Some(t))
+        } else {
+            (self.sample(bs, rng)?, None)
+        };
         if reward.is_adaptive() {
             let (r, _) = reward.reward_and_grad(b.states.view(), b.actions.view())?;
             b.set_rewards(&r.to_vec())?;
         }
         let w = self.importance_weights(&b)?;
-        let value_loss = self.update_value(&b, &w)?;
+        let value_loss = match &tail {
+            Some(t) => self.update_value_nstep(&b, t, &w)?,
+            None => self.update_value(&b, &w)?,
+        };
         self.check_finite("SVG value loss", value_loss)?;
         let policy_objective = if with_policy {
             let b = self.sample(bs, rng)?;

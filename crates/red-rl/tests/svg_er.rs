@@ -313,6 +313,13 @@ fn config_validation_names_the_field() {
             },
             "sil_episodes",
         ),
+        (
+            SvgConfig {
+                value_nstep: 0,
+                ..SvgConfig::default()
+            },
+            "value_nstep",
+        ),
     ] {
         let e = config.validate().unwrap_err().to_string();
         assert!(e.contains(field), "{e}");
@@ -748,4 +755,66 @@ fn uniform_average_is_the_mean_of_the_policies_since_its_start() {
     // Without a uniform start and with tau 0, there is no averaged copy.
     let (svg, _) = fresh(4, &small_config());
     assert_eq!(svg.reported_policy(), svg.policy());
+}
+
+/// An n-step update given a one-step tail is the TD(0) update, number for
+/// number; a 5-step target still learns the task while taking another
+/// path; the default (1) is not written to configs.
+#[test]
+fn n_step_value_targets_learn_and_one_step_is_td0() {
+    let (mut a, mut rng) = fresh(4, &small_config());
+    train_plain(&mut a, 120, &mut rng);
+    let mut b = a.clone();
+    let batch = a.sample(16, &mut rng).unwrap();
+    let w = a.importance_weights(&batch).unwrap();
+    let gamma = a.config().gamma;
+    let tail = red_rl::replay::NStepTail {
+        later_rewards: vec![0.0; 16],
+        boot_states: batch.next_states.clone(),
+        discount: batch
+            .terminated
+            .iter()
+            .map(|&t| if t { 0.0 } else { gamma })
+            .collect(),
+    };
+    let la = a.update_value(&batch, &w).unwrap();
+    let lb = b.update_value_nstep(&batch, &tail, &w).unwrap();
+    assert_eq!(la, lb);
+    assert_eq!(
+        serde_json::to_string(&a).unwrap(),
+        serde_json::to_string(&b).unwrap()
+    );
+    assert!(
+        !serde_json::to_string(&small_config())
+            .unwrap()
+            .contains("value_nstep"),
+        "the default is not written, so configs read the same as before"
+    );
+
+    let config = SvgConfig {
+        hidden: vec![32],
+        gamma: 0.9,
+        policy_lr: 3e-3,
+        learning_starts: 200,
+        policy_delay: 200,
+        batch_size: 32,
+        value_nstep: 5,
+        ..SvgConfig::default()
+    };
+    let (svg0, _) = fresh(5, &config);
+    let before = eval_distance(svg0.policy(), 10);
+    let (mut svg, mut rng) = fresh(5, &config);
+    train_plain(&mut svg, 8_000, &mut rng);
+    let after = eval_distance(svg.policy(), 10);
+    let (td0, _) = run(5, 8_000);
+    assert_ne!(
+        svg.policy(),
+        td0.policy(),
+        "the 5-step target changes the run"
+    );
+    eprintln!("5-step: final distance {before} -> {after}");
+    assert!(
+        after < 0.2 && after < 0.4 * before,
+        "final distance {before} -> {after}"
+    );
 }
