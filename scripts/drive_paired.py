@@ -6,7 +6,8 @@ paired difference against the same method at the session-32 defaults (docs/resul
 "The defaults since session 32": RED on seeds 0-9, AE, GAIL and GMMIL on seeds 0-4), as
 sessions 34 and 35 computed them. SEEDS: "0 1 2 3 4" by default; METHOD: red (default), ae,
 gail or gmmil; or red@37: RED against the defaults since session 37 (the Polyak-averaged
-policy, session 34's runs of it on seeds 0-9)."""
+policy, session 34's runs of it on seeds 0-9); or g98@39: RED with the discount 0.98
+(session 39's runs, seeds 0-9).""" 
 import json, os, sys, math
 D = {  # (demo road per seed 0-9, unseen per seed 0-9)
  "scripted": ([100.0,100.0,100.0,100.0,84.0,70.9,61.5,100.0,64.9,100.0],[54.4,90.8,96.3,92.5,70.9,35.1,57.2,75.4,37.8,94.8]),
@@ -36,11 +37,20 @@ BASE["red@37"] = {
  "s23": ([100.0,76.3,100.0,80.9,100.0,80.7,100.0,79.7,100.0,100.0],[96.6,85.0,65.2,56.8,72.9,72.1,93.3,84.2,81.9,86.7]),
  "s37": ([100.0,44.5,100.0,100.0,63.0,100.0,100.0,100.0,100.0,100.0],[87.9,46.1,50.1,76.6,86.9,100.0,100.0,81.7,100.0,100.0]),
 }
+# RED with the discount 0.98 ({"svg":{"gamma":0.98}}), session 39's runs (docs/results/drive.md).
+BASE["g98@39"] = {
+ "scripted": ([78.7,100.0,100.0,100.0,100.0,100.0,100.0,31.6,84.5,100.0],[95.2,97.7,84.7,91.4,91.8,94.6,83.5,51.0,74.1,77.0]),
+ "s11": ([88.0,100.0,71.6,100.0,66.0,79.7,85.1,88.0,83.5,100.0],[37.4,92.6,54.8,82.4,72.0,49.4,80.4,80.6,79.0,100.0]),
+ "s23": ([100.0,100.0,83.2,100.0,100.0,100.0,81.5,82.9,81.1,100.0],[94.1,96.3,69.7,89.7,57.7,80.3,85.2,92.3,89.6,75.1]),
+ "s37": ([100.0,63.1,81.5,100.0,100.0,100.0,65.3,63.0,100.0,100.0],[65.1,79.3,46.5,91.7,97.0,36.8,83.6,92.6,31.1,86.9]),
+}
 root, name = sys.argv[1], sys.argv[2]
 method = sys.argv[4] if len(sys.argv) > 4 else "red"
 if method != "red":
     D = BASE[method]
     method = method.split("@")[0]
+    if method not in ("ae", "gail", "gmmil"):
+        method = "red"  # red@37, g98@39: RED under other settings
 seeds = [int(s) for s in (sys.argv[3] if len(sys.argv) > 3 else "0 1 2 3 4").split()]
 dr, du, dd, ddu, n90, n90d = [], [], [], [], 0, 0
 print(f"| setting | demo | seeds | % demo road | mean | worst | % unseen roads | mean |")

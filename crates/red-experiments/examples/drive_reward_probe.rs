@@ -6,7 +6,8 @@
 //! run folder's final RED policy (reset seed 1000, the evaluation's first
 //! episode) the distance, the mean reward of the episode, of its last 40
 //! steps and of its last pair, and whether the paper's terminal test
-//! penalises the ending.
+//! penalises the ending. `PROBE_CHUNKS=1` adds, per 50 steps, the mean
+//! reward, lateral offset (m) and speed (km/h) as `reward@y/kmh`.
 use ndarray::Array2;
 use red_core::{Env, record_episode};
 use red_drive::make_env;
@@ -45,7 +46,7 @@ fn main() -> AnyResult<()> {
         episodes.push((d.clone(), t, r));
     }
     let road = road.ok_or("give at least one run folder")?;
-    let (demos, _, _) = load_demo(&demo_path, Some(road), false)?;
+    let (demos, _, _) = load_demo(&demo_path, Some(road.clone()), false)?;
     let (es, ea) = demos.pairs();
     let cfg = DriveTrainConfig::default();
     for &seed in &seeds {
@@ -73,14 +74,18 @@ fn main() -> AnyResult<()> {
                 term.penalty(last)
             );
             if std::env::var_os("PROBE_CHUNKS").is_some() {
-                // Mean reward and lateral offset (m) per 50 steps.
+                // Mean reward, lateral offset (m) and speed (km/h) per 50
+                // steps.
+                let half = road.half_width();
                 let line: Vec<String> = (0..n)
                     .step_by(50)
                     .map(|c| {
                         let e = (c + 50).min(n);
+                        let mean =
+                            |j: usize| s.slice(ndarray::s![c..e, j]).mean().unwrap_or(f64::NAN);
                         let rm = v.slice(ndarray::s![c..e]).mean().unwrap_or(f64::NAN);
-                        let y = s.slice(ndarray::s![c..e, 20]).mean().unwrap_or(f64::NAN) * 5.25;
-                        format!("{rm:.2}@{y:+.1}")
+                        let (y, kmh) = (mean(20) * half, mean(23) * road.max_speed * 3.6);
+                        format!("{rm:.2}@{y:+.1}/{kmh:.0}")
                     })
                     .collect();
                 println!("    {}", line.join(" "));

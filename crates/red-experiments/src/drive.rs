@@ -50,6 +50,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::imitation::{self, ImitationReward, Method, RewardSettings};
 use crate::plot::{Panel, Series, draw_panels, mean_std, palette};
+use crate::stall::{INFO_STALLED, StallEnd, StallRule};
 use crate::{Error, Progress, Result, ResultExt, RunDir};
 
 /// Every method, in the order `all` runs them.
@@ -225,6 +226,18 @@ pub struct DriveTrainConfig {
     /// road (s.e. 4.2), -3.5 of unseen roads (4.9), so it stays off.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub spare_the_finish: bool,
+    /// End a training episode once the car has been slower than
+    /// `below_kmh` for `seconds` in a row (our addition; every method's
+    /// episodes end, and RED and AE, the methods with the terminal
+    /// heuristic, charge its full penalty there; the checks and the
+    /// evaluation drive the plain road).
+    /// RED's reward of a slow car is about 0, never negative, so a car
+    /// that stops risks nothing until the time limit: with the discount
+    /// 0.98 some final policies stop on the road (session 41). `None`,
+    /// the default: off. Example: `{"stall_end":{"below_kmh":30,
+    /// "seconds":2}}`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stall_end: Option<StallRule>,
     /// Smooth the demonstration's actions before any method learns from
     /// them (our addition, 0 = off, the default): each action becomes the
     /// mean of the actions up to this many steps before and after it in
@@ -398,6 +411,7 @@ impl Default for DriveTrainConfig {
             train_start_heading_noise: None,
             penalise_every_crash: false,
             spare_the_finish: false,
+            stall_end: None,
             demo_action_smoothing: 0,
             reward_on_states: false,
             reward_seed: None,
@@ -521,6 +535,9 @@ impl DriveTrainConfig {
             .validate()
             .with_context(|| "train.autoencoder")?;
         self.terminal.validate().with_context(|| "train.terminal")?;
+        if let Some(rule) = &self.stall_end {
+            rule.check().map_err(|e| invalid("train.stall_end", e))?;
+        }
         self.gail.validate().with_context(|| "train.gail")?;
         self.gmmil.validate().with_context(|| "train.gmmil")?;
         self.policy.validate().with_context(|| "train.policy")?;
@@ -1118,11 +1135,14 @@ impl EndRule {
 /// The terminal heuristic's addition at an episode's end whose last pair
 /// has reward `final_reward` and whose last step reported `info`: the
 /// paper's test; nothing at a finish when `rule.spare_finish`; the full
-/// penalty at a crash when `rule.every_crash`.
+/// penalty at a crash when `rule.every_crash`, and at a stall
+/// (`train.stall_end`, which only training episodes have).
 fn terminal_penalty(t: &TerminalHeuristic, final_reward: f64, info: &Info, rule: EndRule) -> f64 {
     if rule.spare_finish && info.get(INFO_SUCCESS) == Some(1.0) {
         0.0
-    } else if rule.every_crash && info.get(INFO_COLLISION) == Some(1.0) {
+    } else if (rule.every_crash && info.get(INFO_COLLISION) == Some(1.0))
+        || info.get(INFO_STALLED) == Some(1.0)
+    {
         t.full_penalty()
     } else {
         t.penalty(final_reward)
@@ -1805,15 +1825,24 @@ fn train_method(
         stop,
         progress,
     };
-    let flow = svg
-        .train_with(&mut env, cfg.steps, None, &term, rng, &mut hooks)
-        .map_err(|e| {
-            e.context(format!(
-                "{method} training stopped at environment step {} (the last good checkpoint, \
+    let flow = match cfg.stall_end {
+        Some(r) => svg.train_with(
+            &mut StallEnd::new(env, r),
+            cfg.steps,
+            None,
+            &term,
+            rng,
+            &mut hooks,
+        ),
+        None => svg.train_with(&mut env, cfg.steps, None, &term, rng, &mut hooks),
+    }
+    .map_err(|e| {
+        e.context(format!(
+            "{method} training stopped at environment step {} (the last good checkpoint, \
                  if any, is kept)",
-                svg.env_steps()
-            ))
-        })?;
+            svg.env_steps()
+        ))
+    })?;
     if flow.is_break() {
         return Ok(Stop::Stopped);
     }
@@ -2619,6 +2648,42 @@ mod tests {
         };
         assert_eq!(terminal_penalty(&t, 0.1, &finish, both), 0.0);
         assert_eq!(terminal_penalty(&t, 0.9, &crash, both), -8.0);
+    }
+
+    #[test]
+    fn a_stall_costs_the_full_penalty_and_the_rule_is_checked() {
+        let t = TerminalHeuristic::with_expert_mean(
+            &TerminalHeuristicConfig {
+                sigma2: 10.0,
+                sigma3: 0.5,
+            },
+            0.8,
+        );
+        let mut stalled = Info::new();
+        stalled.set(INFO_STALLED, 1.0);
+        for rule in [
+            EndRule::default(),
+            EndRule {
+                every_crash: true,
+                spare_finish: true,
+            },
+        ] {
+            assert_eq!(terminal_penalty(&t, 0.9, &stalled, rule), -8.0);
+        }
+        let mut cfg: DriveTrainConfig =
+            serde_json::from_str(r#"{"stall_end":{"below_kmh":50,"seconds":2}}"#).unwrap();
+        assert!(cfg.validate().is_ok());
+        assert!(
+            !serde_json::to_string(&DriveTrainConfig::default())
+                .unwrap()
+                .contains("stall_end")
+        );
+        cfg.stall_end = Some(StallRule {
+            below_kmh: -1.0,
+            seconds: 2.0,
+        });
+        let e = cfg.validate().unwrap_err().to_string();
+        assert!(e.contains("stall_end") && e.contains("below_kmh"), "{e}");
     }
 
     #[test]

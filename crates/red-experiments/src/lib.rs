@@ -33,6 +33,7 @@ pub mod imitation;
 pub mod mujoco;
 pub mod plot;
 pub mod run_dir;
+pub mod stall;
 pub mod support;
 pub mod toy;
 
