@@ -203,8 +203,9 @@ fn learner_set(svg: &mut Svg1, params: &[f32]) {
     svg.policy_mut().net_mut().set_params_flat(params).unwrap();
 }
 
-fn run(seed: u64, steps: u64) -> (Svg1, Vec<f64>) {
-    let config = SvgConfig {
+/// The settings of the reaching tests.
+fn reach_config() -> SvgConfig {
+    SvgConfig {
         hidden: vec![32],
         gamma: 0.9,
         policy_lr: 3e-3,
@@ -212,8 +213,15 @@ fn run(seed: u64, steps: u64) -> (Svg1, Vec<f64>) {
         policy_delay: 200,
         batch_size: 32,
         ..SvgConfig::default()
-    };
-    let (mut svg, mut rng) = fresh(seed, &config);
+    }
+}
+
+fn run(seed: u64, steps: u64) -> (Svg1, Vec<f64>) {
+    run_with(&reach_config(), seed, steps)
+}
+
+fn run_with(config: &SvgConfig, seed: u64, steps: u64) -> (Svg1, Vec<f64>) {
+    let (mut svg, mut rng) = fresh(seed, config);
     let mut env = Reach::default();
     let mut returns = Vec::new();
     svg.train(
@@ -792,24 +800,16 @@ fn n_step_value_targets_learn_and_one_step_is_td0() {
     );
 
     let config = SvgConfig {
-        hidden: vec![32],
-        gamma: 0.9,
-        policy_lr: 3e-3,
-        learning_starts: 200,
-        policy_delay: 200,
-        batch_size: 32,
         value_nstep: 5,
-        ..SvgConfig::default()
+        ..reach_config()
     };
     let (svg0, _) = fresh(5, &config);
     let before = eval_distance(svg0.policy(), 10);
-    let (mut svg, mut rng) = fresh(5, &config);
-    train_plain(&mut svg, 8_000, &mut rng);
+    let (svg, _) = run_with(&config, 5, 8_000);
     let after = eval_distance(svg.policy(), 10);
-    let (td0, _) = run(5, 8_000);
     assert_ne!(
-        svg.policy(),
-        td0.policy(),
+        run_with(&config, 5, 600).0.policy(),
+        run(5, 600).0.policy(),
         "the 5-step target changes the run"
     );
     eprintln!("5-step: final distance {before} -> {after}");
