@@ -1,7 +1,9 @@
 //! Drives finished runs' saved final RED policies again (the evaluation's
 //! episodes: the demo's road and the unseen roads) and prints each road's
 //! % and how every episode ended, through
-//! [`red_experiments::drive::eval_saved`].
+//! [`red_experiments::drive::eval_saved`]; last, the counts of endings
+//! (finish / crash / time up) over all the runs given, on the demo's road
+//! and on the unseen roads.
 //! `cargo run --release -p red-experiments --example drive_eval_saved --
 //! RUN_DIR...`
 use red_experiments::drive::{EvalRequest, eval_saved};
@@ -15,9 +17,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         method: "red".into(),
         ..EvalRequest::default()
     };
+    // [finish, crash, time up] on the demo's road and on unseen roads.
+    let (mut demo, mut unseen) = ([0usize; 3], [0usize; 3]);
     for d in &runs {
         println!("== {d}");
-        print!("{}", eval_saved(std::path::Path::new(d), &req)?);
+        let out = eval_saved(std::path::Path::new(d), &req)?;
+        print!("{out}");
+        for line in out.lines().filter(|l| l.starts_with("road ")) {
+            let c = if line.contains("demonstration") {
+                &mut demo
+            } else {
+                &mut unseen
+            };
+            for (k, word) in ["finish", "crash", "time up"].iter().enumerate() {
+                c[k] += line.matches(word).count();
+            }
+        }
     }
+    println!(
+        "{} run(s), finish / crash / time up: demo's road {} / {} / {}, unseen roads {} / {} / {}",
+        runs.len(),
+        demo[0],
+        demo[1],
+        demo[2],
+        unseen[0],
+        unseen[1],
+        unseen[2]
+    );
     Ok(())
 }

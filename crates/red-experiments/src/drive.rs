@@ -1825,24 +1825,16 @@ fn train_method(
         stop,
         progress,
     };
-    let flow = match cfg.stall_end {
-        Some(r) => svg.train_with(
-            &mut StallEnd::new(env, r),
-            cfg.steps,
-            None,
-            &term,
-            rng,
-            &mut hooks,
-        ),
-        None => svg.train_with(&mut env, cfg.steps, None, &term, rng, &mut hooks),
-    }
-    .map_err(|e| {
-        e.context(format!(
-            "{method} training stopped at environment step {} (the last good checkpoint, \
+    let mut env = StallEnd::new(env, cfg.stall_end);
+    let flow = svg
+        .train_with(&mut env, cfg.steps, None, &term, rng, &mut hooks)
+        .map_err(|e| {
+            e.context(format!(
+                "{method} training stopped at environment step {} (the last good checkpoint, \
                  if any, is kept)",
-            svg.env_steps()
-        ))
-    })?;
+                svg.env_steps()
+            ))
+        })?;
     if flow.is_break() {
         return Ok(Stop::Stopped);
     }

@@ -47,6 +47,7 @@ impl StallRule {
 
 /// Wraps a driving environment: a step after `rule.steps()` steps in a
 /// row below `rule.below_kmh` is terminated, with [`INFO_STALLED`] set.
+/// Without a rule it passes every step through unchanged.
 pub struct StallEnd<E> {
     inner: E,
     below: f64,
@@ -55,12 +56,15 @@ pub struct StallEnd<E> {
 }
 
 impl<E> StallEnd<E> {
-    /// `inner` with `rule`.
-    pub fn new(inner: E, rule: StallRule) -> Self {
+    /// `inner` with `rule` (`None`: never ends an episode).
+    pub fn new(inner: E, rule: Option<StallRule>) -> Self {
+        let (below, steps) = rule.map_or((f64::NEG_INFINITY, usize::MAX), |r| {
+            (r.below_kmh / 3.6, r.steps())
+        });
         Self {
             inner,
-            below: rule.below_kmh / 3.6,
-            steps: rule.steps(),
+            below,
+            steps,
             slow: 0,
         }
     }
@@ -108,7 +112,7 @@ mod tests {
         };
         assert_eq!(rule.steps(), (1.0 / DT).round() as usize);
         let config = DriveConfig::default();
-        let mut env = StallEnd::new(make_env(&config).unwrap(), rule);
+        let mut env = StallEnd::new(make_env(&config).unwrap(), Some(rule));
         let mut plain = make_env(&config).unwrap();
         env.reset(Some(3)).unwrap();
         plain.reset(Some(3)).unwrap();
