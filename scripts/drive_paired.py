@@ -8,7 +8,8 @@ sessions 34 and 35 computed them. SEEDS: "0 1 2 3 4" by default; METHOD: red (de
 gail or gmmil; or red@37: RED against the defaults since session 37 (the Polyak-averaged
 policy, session 34's runs of it on seeds 0-9); or g98@39: RED with the discount 0.98
 (session 39's runs, seeds 0-9); or ae@37, gail@37, gmmil@37: that method against its own
-runs at the defaults since session 37 (seeds 0-4).""" 
+runs at the defaults since session 37 (seeds 0-4); red@42: RED against the defaults since
+session 42 (seeds 0-9).""" 
 import json, os, sys, math
 D = {  # (demo road per seed 0-9, unseen per seed 0-9)
  "scripted": ([100.0,100.0,100.0,100.0,84.0,70.9,61.5,100.0,64.9,100.0],[54.4,90.8,96.3,92.5,70.9,35.1,57.2,75.4,37.8,94.8]),
@@ -64,6 +65,13 @@ BASE["gmmil@37"] = {
  "s11": ([33.7,79.7,87.8,78.8,66.9],[34.1,34.8,32.8,35.6,41.5]),
  "s23": ([44.5,80.9,60.9,68.7,67.2],[51.3,74.8,66.0,60.9,64.6]),
  "s37": ([100.0,100.0,100.0,100.0,81.5],[15.5,15.8,15.8,15.8,15.2]),
+}
+# RED at the defaults since session 42 (discount 0.98, 10-step targets, stall end), seeds 0-9.
+BASE["red@42"] = {
+ "scripted": ([100.0,100.0,100.0,100.0,100.0,100.0,100.0,81.5,100.0,100.0],[92.1,90.5,98.5,100.0,95.2,100.0,91.9,82.3,91.8,44.3]),
+ "s11": ([100.0,100.0,100.0,100.0,100.0,70.2,100.0,91.9,100.0,81.5],[94.1,98.5,92.1,93.7,86.2,42.9,100.0,81.8,95.9,83.4]),
+ "s23": ([100.0,100.0,89.4,88.0,80.6,66.5,100.0,100.0,100.0,80.8],[78.9,92.9,97.1,79.0,72.9,96.1,88.9,100.0,87.5,76.8]),
+ "s37": ([60.6,100.0,100.0,100.0,100.0,76.6,100.0,81.8,74.1,100.0],[47.7,50.1,69.0,87.2,100.0,74.7,98.4,90.3,57.8,97.5]),
 }
 root, name = sys.argv[1], sys.argv[2]
 method = sys.argv[4] if len(sys.argv) > 4 else "red"
