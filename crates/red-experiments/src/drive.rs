@@ -2691,6 +2691,13 @@ mod tests {
         assert!(text.contains(r#""stall_end":null"#), "{text}");
         let back = crate::run_dir::overlay_json(&on, &text, Path::new("c.json")).unwrap();
         assert_eq!(back.stall_end, None);
+        // The same for the learner's TD(0): a saved train object at 1,
+        // given back over the driving defaults (10 steps), stays at 1.
+        let mut td0 = on.clone();
+        td0.svg.value_nstep = 1;
+        let text = serde_json::to_string(&td0).unwrap();
+        let back = crate::run_dir::overlay_json(&on, &text, Path::new("c.json")).unwrap();
+        assert_eq!((on.svg.value_nstep, back.svg.value_nstep), (10, 1));
         let old: DriveTrainConfig = serde_json::from_str(r#"{"steps":100}"#).unwrap();
         assert_eq!(old.stall_end, None);
         let asked = crate::run_dir::overlay_json(&on, r#"{"stall_end":null}"#, Path::new("t.json"));

@@ -156,13 +156,12 @@ pub struct SvgConfig {
     /// with TD(0), over seeds 0-9, and more of its final policies stop on
     /// the road; 10 steps at 0.95 lost 16 points on one demo. With a
     /// training-time end for a stopped car, 10 steps at 0.98 became the
-    /// driving default in session 42 (+9.1 points of unseen roads).
-    #[serde(skip_serializing_if = "is_one")]
+    /// driving default in session 42 (+9.1 points of unseen roads). Always
+    /// written, so a saved config given back (for example the `train`
+    /// object of a driving run's config.json through `--train-config`,
+    /// which is laid over the driving defaults) keeps its value; a file
+    /// without it reads as 1.
     pub value_nstep: usize,
-}
-
-fn is_one(n: &usize) -> bool {
-    *n == 1
 }
 
 impl Default for SvgConfig {

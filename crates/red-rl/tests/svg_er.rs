@@ -792,11 +792,17 @@ fn n_step_value_targets_learn_and_one_step_is_td0() {
         serde_json::to_string(&a).unwrap(),
         serde_json::to_string(&b).unwrap()
     );
-    assert!(
-        !serde_json::to_string(&small_config())
-            .unwrap()
-            .contains("value_nstep"),
-        "the default is not written, so configs read the same as before"
+    let written = serde_json::to_value(small_config()).unwrap();
+    assert_eq!(
+        written["value_nstep"], 1,
+        "TD(0) is written out, so a saved config laid over other defaults keeps it"
+    );
+    let mut old = written.clone();
+    old.as_object_mut().unwrap().remove("value_nstep");
+    let read: SvgConfig = serde_json::from_value(old).unwrap();
+    assert_eq!(
+        read.value_nstep, 1,
+        "a file without the field reads as TD(0)"
     );
 
     let config = SvgConfig {
