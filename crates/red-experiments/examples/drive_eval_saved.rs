@@ -3,7 +3,8 @@
 //! % and how every episode ended, through
 //! [`red_experiments::drive::eval_saved`]; last, the counts of endings
 //! (finish / crash / time up) over all the runs given, on the demo's road
-//! and on the unseen roads.
+//! and on the unseen roads, and the crashes before 100 m by the episode's
+//! reset seed (1000, 1001, ...) over all roads.
 //! `cargo run --release -p red-experiments --example drive_eval_saved --
 //! RUN_DIR...`
 use red_experiments::drive::{EvalRequest, eval_saved};
@@ -19,6 +20,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     // [finish, crash, time up] on the demo's road and on unseen roads.
     let (mut demo, mut unseen) = ([0usize; 3], [0usize; 3]);
+    // Crashes before 100 m, by the episode's place in the road's line
+    // (its reset seed is 1000 + place).
+    let mut early: Vec<usize> = Vec::new();
     for d in &runs {
         println!("== {d}");
         let out = eval_saved(std::path::Path::new(d), &req)?;
@@ -32,6 +36,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for (k, word) in ["finish", "crash", "time up"].iter().enumerate() {
                 c[k] += line.matches(word).count();
             }
+            // "road N: P% | D ending | D ending ..."
+            for (i, ep) in line.split(" | ").skip(1).enumerate() {
+                let d: f64 = ep.split_whitespace().next().unwrap_or("").parse()?;
+                if early.len() <= i {
+                    early.resize(i + 1, 0);
+                }
+                if ep.contains("crash") && d < 100.0 {
+                    early[i] += 1;
+                }
+            }
         }
     }
     println!(
@@ -43,6 +57,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         unseen[0],
         unseen[1],
         unseen[2]
+    );
+    let by_seed: Vec<String> = early
+        .iter()
+        .enumerate()
+        .map(|(i, n)| format!("{} {n}", 1000 + i))
+        .collect();
+    println!(
+        "crashes before 100 m by reset seed (all roads): {}",
+        by_seed.join(", ")
     );
     Ok(())
 }

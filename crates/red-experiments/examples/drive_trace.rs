@@ -1,0 +1,68 @@
+//! Diagnosis: how a saved final RED policy starts. For each road (track
+//! seed) and reset seed given, the start (lateral offset in m, heading in
+//! rad, speed in km/h), the distance driven, and every 4th step of the
+//! first STEPS (80 by default) as `y/steer/pedal`.
+//! `cargo run --release -p red-experiments --example drive_trace --
+//! RUN_DIR 23,101 1000,1001 [STEPS]`.
+use red_core::{Env, record_episode};
+use red_drive::{DriveConfig, make_env};
+use red_experiments::drive::load_run_policy;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.len() < 3 {
+        return Err(
+            "usage: drive_trace RUN_DIR ROADS SEEDS [STEPS], e.g. RUN 23,101 1000,1001".into(),
+        );
+    }
+    let dir = std::path::PathBuf::from(&args[0]);
+    let roads: Vec<u64> = args[1]
+        .split(',')
+        .map(|s| s.parse())
+        .collect::<Result<_, _>>()?;
+    let seeds: Vec<u64> = args[2]
+        .split(',')
+        .map(|s| s.parse())
+        .collect::<Result<_, _>>()?;
+    let steps: usize = match args.get(3) {
+        Some(s) => s.parse()?,
+        None => 80,
+    };
+    let (run, policy) = load_run_policy(&dir, "red", false)?;
+    for &road in &roads {
+        let cfg = DriveConfig {
+            track_seed: road,
+            ..run.drive.clone()
+        };
+        let hw = cfg.half_width();
+        for &seed in &seeds {
+            let mut env = make_env(&cfg)?;
+            let (obs, _) = env.reset(Some(seed))?;
+            let (t, r) = record_episode(
+                &mut env,
+                obs,
+                None,
+                |_, o| -> Result<Vec<f64>, Box<dyn std::error::Error>> {
+                    Ok(policy.act_deterministic(o)?)
+                },
+                |_, _| Ok(()),
+            )?;
+            let o0 = &t.observations[0];
+            println!(
+                "road {road} seed {seed}: start y {:+.2} hd {:+.3} v {:.1} -> {:.1} m",
+                o0[20] * hw,
+                o0[21] * cfg.heading_scale,
+                o0[23] * cfg.max_speed * 3.6,
+                r.true_return
+            );
+            let mut line = String::new();
+            for i in (0..t.observations.len().min(steps)).step_by(4) {
+                let o = &t.observations[i];
+                let a = &t.actions[i];
+                line.push_str(&format!("{:+.1}/{:+.2}/{:+.2} ", o[20] * hw, a[0], a[1]));
+            }
+            println!("   {line}");
+        }
+    }
+    Ok(())
+}
