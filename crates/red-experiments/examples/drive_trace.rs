@@ -1,7 +1,9 @@
 //! Diagnosis: how a saved final RED policy starts. For each road (track
 //! seed) and reset seed given, the start (lateral offset in m, heading in
 //! rad, speed in km/h), the distance driven, and every 4th step of the
-//! first STEPS (80 by default) as `y/steer/pedal`.
+//! first STEPS (80 by default) as `y/steer/pedal`. `TRACE_RAYS=1` adds the
+//! start's lidar rays 6-13 (the fan's middle; ray 10 points 0.25 degrees
+//! left of the heading, ray 9 as far right), as fractions of the range.
 //! `cargo run --release -p red-experiments --example drive_trace --
 //! RUN_DIR 23,101 1000,1001 [STEPS]`.
 use red_core::{Env, record_episode};
@@ -55,6 +57,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 o0[23] * cfg.max_speed * 3.6,
                 r.true_return
             );
+            if std::env::var_os("TRACE_RAYS").is_some() {
+                let rays: Vec<String> = o0[6..14].iter().map(|r| format!("{r:.2}")).collect();
+                println!("   start rays 6-13: {}", rays.join(" "));
+            }
             let mut line = String::new();
             for i in (0..t.observations.len().min(steps)).step_by(4) {
                 let o = &t.observations[i];
