@@ -9,9 +9,9 @@
 //! penalises the ending. `PROBE_CHUNKS=1` adds, per 50 steps, the mean
 //! reward, lateral offset (m) and speed (km/h) as `reward@y/kmh`.
 use ndarray::Array2;
-use red_core::{Env, record_episode};
-use red_drive::make_env;
-use red_experiments::drive::{DriveTrainConfig, EVAL_SEED, load_demo, load_run_policy, run_reward};
+use red_experiments::drive::{
+    DriveTrainConfig, EVAL_SEED, drive_deterministic, load_demo, load_run_policy, run_reward,
+};
 use red_experiments::imitation::Method;
 
 type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
@@ -31,17 +31,7 @@ fn main() -> AnyResult<()> {
     let mut road = None;
     for d in runs {
         let (run, policy) = load_run_policy(std::path::Path::new(d), "red", false)?;
-        let mut env = make_env(&run.drive)?;
-        let (obs, _) = env.reset(Some(EVAL_SEED))?;
-        let (t, r) = record_episode(
-            &mut env,
-            obs,
-            None,
-            |_, o| -> Result<Vec<f64>, Box<dyn std::error::Error>> {
-                Ok(policy.act_deterministic(o)?)
-            },
-            |_, _| Ok(()),
-        )?;
+        let (t, r) = drive_deterministic(&run.drive, &policy, EVAL_SEED)?;
         road.get_or_insert(run.drive.clone());
         episodes.push((d.clone(), t, r));
     }

@@ -6,9 +6,8 @@
 //! left of the heading, ray 9 as far right), as fractions of the range.
 //! `cargo run --release -p red-experiments --example drive_trace --
 //! RUN_DIR 23,101 1000,1001 [STEPS]`.
-use red_core::{Env, record_episode};
-use red_drive::{DriveConfig, make_env};
-use red_experiments::drive::load_run_policy;
+use red_drive::DriveConfig;
+use red_experiments::drive::{drive_deterministic, load_run_policy};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -38,17 +37,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         let hw = cfg.half_width();
         for &seed in &seeds {
-            let mut env = make_env(&cfg)?;
-            let (obs, _) = env.reset(Some(seed))?;
-            let (t, r) = record_episode(
-                &mut env,
-                obs,
-                None,
-                |_, o| -> Result<Vec<f64>, Box<dyn std::error::Error>> {
-                    Ok(policy.act_deterministic(o)?)
-                },
-                |_, _| Ok(()),
-            )?;
+            let (t, r) = drive_deterministic(&cfg, &policy, seed)?;
             let o0 = &t.observations[0];
             println!(
                 "road {road} seed {seed}: start y {:+.2} hd {:+.3} v {:.1} -> {:.1} m",

@@ -1164,6 +1164,28 @@ fn terminal_penalty(t: &TerminalHeuristic, final_reward: f64, info: &Info, rule:
     }
 }
 
+/// Drives `policy`'s mean action on `config`'s road from reset seed
+/// `seed` (the evaluation's way): the episode's observations, actions and
+/// true rewards, and its summary (`true_return` is the distance).
+///
+/// # Errors
+/// A road that cannot be built; a policy that fails on an observation.
+pub fn drive_deterministic(
+    config: &DriveConfig,
+    policy: &GaussianPolicy,
+    seed: u64,
+) -> Result<(red_core::Trajectory, red_core::EpisodeRun)> {
+    let mut env = make_env(config)?;
+    let (obs, _) = env.reset(Some(seed))?;
+    record_episode(
+        &mut env,
+        obs,
+        None,
+        |_, obs| Ok::<_, Error>(policy.act_deterministic(obs)?),
+        |_, _| Ok(()),
+    )
+}
+
 /// Drives `policy` deterministically from reset seed `seed`; the own return
 /// is the sum of `reward` plus `terminal` of the last reward, when given
 /// (with [`terminal_penalty`]'s `rule`).
