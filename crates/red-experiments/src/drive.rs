@@ -1175,27 +1175,17 @@ pub fn drive_deterministic(
     policy: &GaussianPolicy,
     seed: u64,
 ) -> Result<(red_core::Trajectory, red_core::EpisodeRun)> {
-    let mut env = make_env(config)?;
-    let (obs, _) = env.reset(Some(seed))?;
-    record_episode(
-        &mut env,
-        obs,
-        None,
-        |_, obs| Ok::<_, Error>(policy.act_deterministic(obs)?),
-        |_, _| Ok(()),
-    )
+    let (t, run, _) = drive_with_poses(config, policy, seed)?;
+    Ok((t, run))
 }
 
-/// Drives `policy` deterministically from reset seed `seed`; the own return
-/// is the sum of `reward` plus `terminal` of the last reward, when given
-/// (with [`terminal_penalty`]'s `rule`).
-fn rollout(
+/// [`drive_deterministic`] keeping the car's pose before the first step
+/// and after every step (for the pictures of a run).
+fn drive_with_poses(
     config: &DriveConfig,
     policy: &GaussianPolicy,
     seed: u64,
-    reward: Option<(&dyn DifferentiableReward, Option<&TerminalHeuristic>)>,
-    rule: EndRule,
-) -> Result<Rollout> {
+) -> Result<(red_core::Trajectory, red_core::EpisodeRun, Vec<CarState>)> {
     let mut env = make_env(config)?;
     let (obs, _) = env.reset(Some(seed))?;
     let mut poses = vec![*env.inner().car()];
@@ -1209,6 +1199,20 @@ fn rollout(
             Ok(())
         },
     )?;
+    Ok((t, run, poses))
+}
+
+/// Drives `policy` deterministically from reset seed `seed`; the own return
+/// is the sum of `reward` plus `terminal` of the last reward, when given
+/// (with [`terminal_penalty`]'s `rule`).
+fn rollout(
+    config: &DriveConfig,
+    policy: &GaussianPolicy,
+    seed: u64,
+    reward: Option<(&dyn DifferentiableReward, Option<&TerminalHeuristic>)>,
+    rule: EndRule,
+) -> Result<Rollout> {
+    let (t, run, poses) = drive_with_poses(config, policy, seed)?;
     let (observations, actions, distance) = (t.observations, t.actions, run.true_return);
     let end = if run.last.terminated {
         if run.last.info.get(INFO_SUCCESS) == Some(1.0) {
