@@ -273,6 +273,25 @@ pub struct DriveTrainConfig {
     /// run's outcome follows its reward or its learner.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reward_seed: Option<u64>,
+    /// The floor on the standard deviation by which the policy's input
+    /// normaliser divides (our setting; the normaliser is fitted on the
+    /// demonstration's states, frozen, and clips at ±5). With a floor of
+    /// 0.01 an input the demonstrator held nearly constant saturates a few
+    /// hundredths away from its value: the speed (demo std 0.0004-0.008
+    /// of the top speed) at about ±7 km/h from the demonstrator's, and
+    /// the lateral position of a demonstrator who keeps one lane (s37,
+    /// std 0.095) one lane away. OpenAI baselines' running mean/std floors
+    /// the variance at 1e-2, a standard deviation of 0.1
+    /// ([`red_rl::normalize::DEFAULT_MIN_STD`]). Always written to
+    /// `config.json`; a file without it (runs made before session 44)
+    /// means 0.01, the floor those runs used.
+    #[serde(default = "policy_obs_min_std_before_44")]
+    pub policy_obs_min_std: f64,
+}
+
+/// The policy normaliser's floor of the runs made before session 44.
+fn policy_obs_min_std_before_44() -> f64 {
+    0.01
 }
 
 fn is_zero_usize(v: &usize) -> bool {
@@ -430,6 +449,7 @@ impl Default for DriveTrainConfig {
             demo_action_smoothing: 0,
             reward_on_states: false,
             reward_seed: None,
+            policy_obs_min_std: policy_obs_min_std_before_44(),
         }
     }
 }
@@ -552,6 +572,13 @@ impl DriveTrainConfig {
         self.terminal.validate().with_context(|| "train.terminal")?;
         if let Some(rule) = &self.stall_end {
             rule.check().map_err(|e| invalid("train.stall_end", e))?;
+        }
+        let f = self.policy_obs_min_std;
+        if !(f.is_finite() && f > 0.0) {
+            return Err(invalid(
+                "train.policy_obs_min_std",
+                format!("must be finite and > 0, got {f}"),
+            ));
         }
         self.gail.validate().with_context(|| "train.gail")?;
         self.gmmil.validate().with_context(|| "train.gmmil")?;
@@ -2043,6 +2070,18 @@ impl DriveOutcome {
     }
 }
 
+/// The policy's input normaliser: the demonstration states' mean and
+/// standard deviation (floored at `train.policy_obs_min_std`), frozen,
+/// clipping at ±5.
+fn policy_normalizer(
+    train: &DriveTrainConfig,
+    states: ArrayView2<'_, f64>,
+) -> Result<ObsNormalizer> {
+    let mut norm = ObsNormalizer::from_data(states, 5.0, train.policy_obs_min_std)?;
+    norm.freeze();
+    Ok(norm)
+}
+
 /// Trains the warm start shared by every method and runs every method.
 ///
 /// `demos` must be the file `config.demo` read by [`load_demo`] (its road
@@ -2065,8 +2104,7 @@ pub fn run_new(
     }
     let (es, ea) = training_pairs(&config.train, demos);
     let mut rng = Seeder::new(config.seed).rng(Stream::Init);
-    let mut norm = ObsNormalizer::from_data(es.view(), 5.0, 1e-2)?;
-    norm.freeze();
+    let norm = policy_normalizer(&config.train, es.view())?;
     let mut policy =
         GaussianPolicy::new(&config.train.policy, OBS_DIM, ACT_DIM, Some(norm), &mut rng)?;
     behavior_clone(
@@ -2734,6 +2772,35 @@ mod tests {
         });
         let e = cfg.validate().unwrap_err().to_string();
         assert!(e.contains("stall_end") && e.contains("below_kmh"), "{e}");
+    }
+
+    #[test]
+    fn the_policy_normaliser_floor_is_a_setting_and_old_files_keep_theirs() {
+        let old: DriveTrainConfig = serde_json::from_str(r#"{"steps":100}"#).unwrap();
+        assert_eq!(old.policy_obs_min_std, 0.01);
+        let mut cfg = DriveTrainConfig::default();
+        let text = serde_json::to_string(&cfg).unwrap();
+        assert!(text.contains(r#""policy_obs_min_std":"#), "{text}");
+        cfg.policy_obs_min_std = 0.1;
+        let text = serde_json::to_string(&cfg).unwrap();
+        let back: DriveTrainConfig = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.policy_obs_min_std, 0.1);
+        // A dimension held constant in the data (the speed here) is divided
+        // by the floor: 0.05 above it reads 5 (clipped) at 0.01, 0.5 at 0.1.
+        let states = ndarray::array![[0.0, 0.7], [1.0, 0.7]];
+        for (floor, want) in [(0.01, 5.0), (0.1, 0.5)] {
+            cfg.policy_obs_min_std = floor;
+            let n = policy_normalizer(&cfg, states.view()).unwrap();
+            let mut x = [0f32; 2];
+            n.normalize_into(&[0.5, 0.75], &mut x).unwrap();
+            assert!((f64::from(x[1]) - want).abs() < 1e-5, "{floor}: {x:?}");
+            assert!(x[0].abs() < 1e-6, "{x:?}");
+        }
+        for bad in [0.0, -0.1, f64::NAN] {
+            cfg.policy_obs_min_std = bad;
+            let e = cfg.validate().unwrap_err().to_string();
+            assert!(e.contains("policy_obs_min_std"), "{e}");
+        }
     }
 
     #[test]
