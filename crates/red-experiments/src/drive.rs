@@ -39,7 +39,7 @@ use red_rl::bc::{BcConfig, behavior_clone};
 use red_rl::episodic::{EpisodeHooks, EpisodicLearner};
 use red_rl::gail::GailConfig;
 use red_rl::gmmil::GmmilConfig;
-use red_rl::normalize::ObsNormalizer;
+use red_rl::normalize::{DEFAULT_CLIP, ObsNormalizer};
 use red_rl::policy::{GaussianPolicy, GaussianPolicyConfig};
 use red_rl::sac::{Sac, SacConfig};
 use red_rl::svg::{EpisodeOutcome, Svg1, SvgConfig};
@@ -2071,15 +2071,17 @@ impl DriveOutcome {
 }
 
 /// The policy's input normaliser: the demonstration states' mean and
-/// standard deviation (floored at `train.policy_obs_min_std`), frozen,
-/// clipping at ±5.
+/// standard deviation (floored at `train.policy_obs_min_std`), frozen by
+/// [`ObsNormalizer::from_data`], clipping at ±5 (the release's).
 fn policy_normalizer(
     train: &DriveTrainConfig,
     states: ArrayView2<'_, f64>,
 ) -> Result<ObsNormalizer> {
-    let mut norm = ObsNormalizer::from_data(states, 5.0, train.policy_obs_min_std)?;
-    norm.freeze();
-    Ok(norm)
+    Ok(ObsNormalizer::from_data(
+        states,
+        DEFAULT_CLIP,
+        train.policy_obs_min_std,
+    )?)
 }
 
 /// Trains the warm start shared by every method and runs every method.
