@@ -287,6 +287,16 @@ pub struct DriveTrainConfig {
     /// means 0.01, the floor those runs used.
     #[serde(default = "policy_obs_min_std_before_44")]
     pub policy_obs_min_std: f64,
+    /// Logarithmic tails on the policy's input normaliser beyond ±5 instead
+    /// of the hard clip (our setting, off by default;
+    /// [`ObsNormalizer::with_soft_tails`]). With the hard clip the policy
+    /// cannot tell the demonstrator's speed less 7 km/h from a stop, nor
+    /// (scripted demo, s37) a heading of 0.07 rad from one of 0.5 rad:
+    /// inputs beyond the clip all read the same. The tails keep every input
+    /// inside ±5 standard deviations as it was and let those beyond it
+    /// still move the policy's input.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub policy_obs_soft_tails: bool,
 }
 
 /// The policy normaliser's floor of the runs made before session 44.
@@ -450,6 +460,7 @@ impl Default for DriveTrainConfig {
             reward_on_states: false,
             reward_seed: None,
             policy_obs_min_std: policy_obs_min_std_before_44(),
+            policy_obs_soft_tails: false,
         }
     }
 }
@@ -2072,16 +2083,16 @@ impl DriveOutcome {
 
 /// The policy's input normaliser: the demonstration states' mean and
 /// standard deviation (floored at `train.policy_obs_min_std`), frozen by
-/// [`ObsNormalizer::from_data`], clipping at ±5 (the release's).
+/// [`ObsNormalizer::from_data`], clipping at ±5 (the release's), with
+/// logarithmic tails beyond it when `train.policy_obs_soft_tails`.
 fn policy_normalizer(
     train: &DriveTrainConfig,
     states: ArrayView2<'_, f64>,
 ) -> Result<ObsNormalizer> {
-    Ok(ObsNormalizer::from_data(
-        states,
-        DEFAULT_CLIP,
-        train.policy_obs_min_std,
-    )?)
+    Ok(
+        ObsNormalizer::from_data(states, DEFAULT_CLIP, train.policy_obs_min_std)?
+            .with_soft_tails(train.policy_obs_soft_tails),
+    )
 }
 
 /// Trains the warm start shared by every method and runs every method.
@@ -2803,6 +2814,35 @@ mod tests {
             let e = cfg.validate().unwrap_err().to_string();
             assert!(e.contains("policy_obs_min_std"), "{e}");
         }
+    }
+
+    #[test]
+    fn soft_tails_on_the_policy_input_are_a_setting_off_by_default() {
+        let old: DriveTrainConfig = serde_json::from_str(r#"{"steps":100}"#).unwrap();
+        assert!(!old.policy_obs_soft_tails);
+        let mut cfg = DriveTrainConfig::default();
+        assert!(!serde_json::to_string(&cfg).unwrap().contains("soft_tails"));
+        let states = ndarray::array![[0.0, 0.7], [1.0, 0.7]];
+        // The speed column is constant (std floored at 0.01): 0.2 below it
+        // is z = -20, clipped to -5 without tails, about -7.8 with them.
+        let read = |c: &DriveTrainConfig, v: f64| {
+            let n = policy_normalizer(c, states.view()).unwrap();
+            let mut x = [0f32; 2];
+            n.normalize_into(&[0.5, v], &mut x).unwrap();
+            f64::from(x[1])
+        };
+        assert!((read(&cfg, 0.5) + 5.0).abs() < 1e-5);
+        let text = r#"{"policy_obs_soft_tails":true}"#;
+        cfg = crate::run_dir::overlay_json(&cfg, text, Path::new("c.json")).unwrap();
+        assert!(cfg.policy_obs_soft_tails);
+        assert!((read(&cfg, 0.5) + 5.0 + 16f64.ln()).abs() < 1e-4);
+        assert!(
+            (read(&cfg, 0.72) - 2.0).abs() < 1e-4,
+            "inside the clip as before"
+        );
+        let back: DriveTrainConfig =
+            serde_json::from_str(&serde_json::to_string(&cfg).unwrap()).unwrap();
+        assert!(back.policy_obs_soft_tails);
     }
 
     #[test]

@@ -1,7 +1,11 @@
 //! Running mean / standard-deviation normalisation of observations, clipped,
 //! with the option to freeze statistics taken from expert data.
 //!
-//! `normalize(x) = clip((x - mean) / max(std, min_std), -clip, clip)`.
+//! `normalize(x) = clip((x - mean) / max(std, min_std), -clip, clip)`, or,
+//! with soft tails ([`ObsNormalizer::with_soft_tails`]), the same inside
+//! `+-clip` and `sign(z) (clip + ln(1 + |z| - clip))` beyond it, so that an
+//! input far from the data still moves the output (slowly) instead of
+//! saturating.
 //!
 //! ```
 //! use ndarray::array;
@@ -32,6 +36,10 @@ pub struct ObsNormalizer {
     clip: f64,
     min_std: f64,
     frozen: bool,
+    /// Logarithmic tails beyond `clip` instead of a hard clip. Absent in
+    /// files written before it existed: a hard clip.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    soft_tails: bool,
 }
 
 /// The release's clip of normalised observations, `+-5`.
@@ -76,7 +84,25 @@ impl ObsNormalizer {
             clip,
             min_std,
             frozen: false,
+            soft_tails: false,
         })
+    }
+
+    /// The same statistics with logarithmic tails beyond `clip` (`on`) or
+    /// the hard clip (`!on`): a normalised value `z` with `|z| > clip`
+    /// becomes `sign(z) (clip + ln(1 + |z| - clip))`, continuous with a
+    /// continuous slope at `clip`, so values inside `+-clip` are unchanged
+    /// and values outside keep their order (`z = 20` gives about 7.8 at
+    /// clip 5, `z = 100` about 9.6).
+    #[must_use]
+    pub fn with_soft_tails(mut self, on: bool) -> Self {
+        self.soft_tails = on;
+        self
+    }
+
+    /// Whether the tails beyond `clip` are logarithmic rather than clipped.
+    pub fn soft_tails(&self) -> bool {
+        self.soft_tails
     }
 
     /// Statistics of `data` (`(n, dim)`, for example the expert's
@@ -180,7 +206,8 @@ impl ObsNormalizer {
     /// Chains a gradient with respect to normalised observations
     /// (`d_norm`, `(n, dim)`, for example what a network's backward pass
     /// returns) back to the raw observations `raw` (`(n, dim)`): divided by
-    /// the standard deviation, and 0 where the clip was active.
+    /// the standard deviation, and 0 where the clip was active (with soft
+    /// tails, times the tail's slope `1 / (1 + |z| - clip)` there).
     ///
     /// # Errors
     /// [`Error::ShapeMismatch`] if the shapes differ or have the wrong
@@ -202,6 +229,8 @@ impl ObsNormalizer {
             let z = (raw[[i, j]] - self.mean[j]) / self.std(j);
             if z.abs() < self.clip {
                 *o = d_norm[[i, j]] as f64 / self.std(j);
+            } else if self.soft_tails {
+                *o = d_norm[[i, j]] as f64 / (self.std(j) * (1.0 + z.abs() - self.clip));
             }
         }
         Ok(out)
@@ -209,7 +238,12 @@ impl ObsNormalizer {
 
     #[inline]
     fn normalize_value(&self, j: usize, v: f64) -> f64 {
-        ((v - self.mean[j]) / self.std(j)).clamp(-self.clip, self.clip)
+        let z = (v - self.mean[j]) / self.std(j);
+        if self.soft_tails && z.abs() > self.clip {
+            z.signum() * (self.clip + (z.abs() - self.clip).ln_1p())
+        } else {
+            z.clamp(-self.clip, self.clip)
+        }
     }
 
     #[inline]
@@ -334,6 +368,49 @@ mod tests {
             }
         }
         assert_eq!(g[[1, 1]], 0.0);
+    }
+
+    #[test]
+    fn soft_tails_keep_the_inside_and_order_the_outside() {
+        let data = array![[0.0], [2.0]]; // mean 1, std 1
+        let hard = ObsNormalizer::from_data(data.view(), 5.0, 0.1).unwrap();
+        let soft = hard.clone().with_soft_tails(true);
+        assert!(soft.soft_tails() && !hard.soft_tails());
+        let at = |n: &ObsNormalizer, x: f64| {
+            let mut o = [0.0f32];
+            n.normalize_into(&[x], &mut o).unwrap();
+            o[0] as f64
+        };
+        for x in [-3.5, 0.0, 1.0, 4.0, 5.9] {
+            assert_eq!(at(&soft, x), at(&hard, x), "inside the clip at {x}");
+        }
+        // z = 20 and z = -100: the hard clip gives 5 and -5 for both.
+        assert_eq!(at(&hard, 21.0), 5.0);
+        assert!((at(&soft, 21.0) - (5.0 + 16f64.ln())).abs() < 1e-5);
+        assert!((at(&soft, -99.0) + (5.0 + 96f64.ln())).abs() < 1e-5);
+        let ys: Vec<f64> = [6.5, 8.0, 30.0, 1e4]
+            .iter()
+            .map(|&x| at(&soft, x))
+            .collect();
+        assert!(ys.windows(2).all(|w| w[0] < w[1]), "{ys:?}");
+        // Continuous at the knee.
+        assert!((at(&soft, 6.0 + 1e-9) - 5.0).abs() < 1e-6);
+        // The gradient through the tail matches finite differences.
+        let raw = array![[12.0], [-40.0], [3.0]];
+        let g = soft
+            .backward(raw.view(), array![[1.0f32], [1.0], [1.0]].view())
+            .unwrap();
+        for i in 0..3 {
+            let x = raw[[i, 0]];
+            let fd = (at(&soft, x + 1e-3) - at(&soft, x - 1e-3)) / 2e-3;
+            assert!((fd - g[[i, 0]]).abs() < 1e-3, "{i}: {fd} vs {}", g[[i, 0]]);
+        }
+        // Written only when on; a file without the key reads as the hard clip.
+        let text = serde_json::to_string(&hard).unwrap();
+        assert!(!text.contains("soft_tails"), "{text}");
+        let back: ObsNormalizer =
+            serde_json::from_str(&serde_json::to_string(&soft).unwrap()).unwrap();
+        assert_eq!(back, soft);
     }
 
     #[test]
