@@ -8,7 +8,7 @@
 //! `cargo run --release -p red-experiments --example drive_saturation --
 //! RUN_DIR [RUN_DIR ...]`.
 use red_drive::DriveConfig;
-use red_experiments::drive::{drive_deterministic, load_run_policy};
+use red_experiments::drive::{EVAL_SEED, drive_deterministic, load_run_policy};
 
 const GROUPS: [&str; 5] = ["rays", "y", "heading", "wallgap", "speed"];
 
@@ -68,7 +68,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ..run.drive.clone()
             };
             for i in 0..run.eval_runs as u64 {
-                let (t, r) = drive_deterministic(&cfg, &policy, 1000 + i)?;
+                let (t, r) = drive_deterministic(&cfg, &policy, EVAL_SEED + i)?;
                 let finished = r.true_return >= 0.999 * cfg.road_length;
                 let zs: Vec<Vec<f64>> = t
                     .observations
@@ -97,7 +97,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         let zl = &zs[n - 1];
                         println!(
                             "{d}: demo road, reset {}: ends at {:.1} m; last z: y {:+.1} heading {:+.1} speed {:+.1}",
-                            1000 + i,
+                            EVAL_SEED + i,
                             r.true_return,
                             zl[20],
                             zl[21],
