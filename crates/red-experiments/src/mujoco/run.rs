@@ -2163,4 +2163,41 @@ mod tests {
         let g = RunConfig::for_task(EnvId::Ant, Method::Gail);
         assert!(!g.freeze_obs_norm_from_demo && g.bc_warm_start_epochs == 0);
     }
+
+    #[test]
+    fn every_mujoco_settings_file_in_data_applies() {
+        // The `--config` files shipped in data/ (experts' TRPO settings,
+        // RED's earlier defaults) must keep reading as the config grows.
+        let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data");
+        let mut files: Vec<PathBuf> = Vec::new();
+        for dir in [data.clone(), data.join("mujoco-red-first-settings")] {
+            for e in std::fs::read_dir(&dir).unwrap() {
+                let p = e.unwrap().path();
+                let name = p.file_name().unwrap().to_string_lossy().into_owned();
+                let ours = dir != data || name.starts_with("mujoco-");
+                if ours && name.ends_with(".json") {
+                    files.push(p);
+                }
+            }
+        }
+        assert!(files.len() >= 10, "found only {files:?}");
+        for f in &files {
+            let method = if f.to_string_lossy().contains("expert") {
+                Method::Expert
+            } else {
+                Method::Red
+            };
+            let text = std::fs::read_to_string(f).unwrap();
+            let c = RunConfig::for_task(EnvId::Walker2d, method).with_overrides(&text, f);
+            assert!(c.is_ok(), "{}: {}", f.display(), c.unwrap_err());
+        }
+        let big = RunConfig::for_task(EnvId::Walker2d, Method::Expert)
+            .with_overrides(
+                &std::fs::read_to_string(data.join("mujoco-expert-config-big-batch.json")).unwrap(),
+                &data,
+            )
+            .unwrap();
+        assert_eq!(big.trpo.steps_per_batch, 4096);
+        assert!(big.trpo.gae.bootstrap_on_truncation);
+    }
 }
