@@ -39,6 +39,24 @@ impl InputMap {
         actions: ArrayView2<'_, f64>,
         standardize: bool,
     ) -> Result<Self> {
+        Self::fit_floored(states, actions, standardize, 0.0)
+    }
+
+    /// As [`InputMap::fit`], with the standard deviations floored at
+    /// `min_std` when standardising: a dimension whose expert spread is
+    /// below the floor (constant ones included) is divided by the floor,
+    /// so that a small step off a narrow demonstration does not read as
+    /// many deviations. A floor of at most 1e-8 is the plain rule of
+    /// [`InputMap::fit`].
+    ///
+    /// # Errors
+    /// As [`InputMap::fit`].
+    pub fn fit_floored(
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+        standardize: bool,
+        min_std: f64,
+    ) -> Result<Self> {
         let (obs_dim, act_dim) = (states.ncols(), actions.ncols());
         check_pairs(states, actions, obs_dim, act_dim)?;
         let n = states.nrows();
@@ -59,7 +77,13 @@ impl InputMap {
                 let var = col.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n as f64;
                 mean[j] = m;
                 let sd = var.sqrt();
-                scale[j] = if sd < MIN_STD { 1.0 } else { sd };
+                scale[j] = if min_std > MIN_STD {
+                    sd.max(min_std)
+                } else if sd < MIN_STD {
+                    1.0
+                } else {
+                    sd
+                };
             }
         }
         Ok(Self {
@@ -180,6 +204,26 @@ mod tests {
         assert!(x.column(1).iter().all(|v| *v == 0.0));
         let g = map.action_grad(Array2::ones((3, 3)).view());
         assert!((g[[0, 0]] - 1.0 / map.scale[2]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_floor_divides_narrow_and_constant_dims_by_itself_only() {
+        // spreads: 2 (wide), 0.01 (narrow), 0 (constant); floor 0.5.
+        let s = array![[-2.0, 0.99, 7.0], [2.0, 1.01, 7.0]];
+        let a = array![[0.0], [0.0]];
+        let map = InputMap::fit_floored(s.view(), a.view(), true, 0.5).unwrap();
+        assert_eq!(map.scale, vec![2.0, 0.5, 0.5, 0.5]);
+        assert_eq!(map.mean, vec![0.0, 1.0, 7.0, 0.0]);
+        // a step of 0.1 off the narrow dimension reads as 0.2, not 10.
+        let x = map
+            .apply(array![[0.0, 1.1, 7.0]].view(), array![[0.0]].view())
+            .unwrap();
+        assert!((x[[0, 1]] - 0.2).abs() < 1e-12);
+        // no floor (0) is the plain rule.
+        let plain = InputMap::fit_floored(s.view(), a.view(), true, 0.0).unwrap();
+        assert_eq!(plain, InputMap::fit(s.view(), a.view(), true).unwrap());
+        assert_eq!(plain.scale[2], 1.0);
+        assert!((plain.scale[1] - 0.01).abs() < 1e-12);
     }
 
     #[test]

@@ -46,6 +46,12 @@ pub struct RndConfig {
     pub adam: AdamConfig,
     /// Standardise `[s, a]` with the expert mean and standard deviation.
     pub standardize: bool,
+    /// Floor of each standard deviation when standardising (our addition;
+    /// 0 keeps the plain rule: only a constant dimension is left unscaled).
+    /// A narrow demonstration (a car at one speed: standard deviation 0.04%
+    /// of the top speed) otherwise makes any other value many deviations
+    /// away.
+    pub min_std: f64,
     /// Half-width of a uniform draw of the target's hidden-layer biases
     /// (our addition; 0, the release's, keeps every bias at zero and draws
     /// nothing). With zero biases a (leaky) ReLU target is positively
@@ -76,6 +82,7 @@ impl Default for RndConfig {
             batch_size: 32,
             adam: AdamConfig::with_lr(1e-3),
             standardize: false,
+            min_std: 0.0,
             target_bias: 0.0,
         }
     }
@@ -87,6 +94,12 @@ impl RndConfig {
     /// # Errors
     /// [`Error::InvalidConfig`].
     pub fn validate(&self) -> Result<()> {
+        if !(self.min_std.is_finite() && self.min_std >= 0.0) {
+            return Err(Error::InvalidConfig {
+                field: "min_std".into(),
+                reason: format!("must be finite and at least 0, got {}", self.min_std),
+            });
+        }
         if !(self.target_bias.is_finite() && self.target_bias >= 0.0) {
             return Err(Error::InvalidConfig {
                 field: "target_bias".into(),
@@ -351,7 +364,7 @@ impl SupportEstimatorConfig for RndConfig {
         progress: &mut dyn FnMut(FitProgress),
     ) -> Result<Rnd> {
         self.validate()?;
-        let input = InputMap::fit(states, actions, self.standardize)?;
+        let input = InputMap::fit_floored(states, actions, self.standardize, self.min_std)?;
         let x = to_f32(input.apply(states, actions)?.view());
         let d = input.dim();
         let mut pairs = Vec::with_capacity(self.ensemble);
