@@ -10,7 +10,8 @@ policy, session 34's runs of it on seeds 0-9); or g98@39: RED with the discount 
 (session 39's runs, seeds 0-9); or ae@37, gail@37, gmmil@37: that method against its own
 runs at the defaults since session 37 (seeds 0-4); red@42: RED against the defaults since
 session 42 (seeds 0-9); ae@42, gail@42, gmmil@42: that method against its runs at the
-defaults since session 42 (seeds 0-4).""" 
+defaults since session 42 (seeds 0-4); red@45: RED against the defaults since session 45
+(seeds 0-9).""" 
 import json, os, sys, math
 D = {  # (demo road per seed 0-9, unseen per seed 0-9)
  "scripted": ([100.0,100.0,100.0,100.0,84.0,70.9,61.5,100.0,64.9,100.0],[54.4,90.8,96.3,92.5,70.9,35.1,57.2,75.4,37.8,94.8]),
@@ -92,6 +93,13 @@ BASE["gmmil@42"] = {
  "s11": ([79.8,85.4,67.3,73.5,79.7],[44.5,42.0,40.9,37.2,42.1]),
  "s23": ([64.7,77.1,66.3,48.1,85.6],[64.9,65.3,70.6,70.1,77.2]),
  "s37": ([100.0,56.8,100.0,100.0,100.0],[14.4,15.2,15.8,73.7,14.4]),
+}
+# RED at the defaults since session 45 (logarithmic tails on the policy's input), seeds 0-9.
+BASE["red@45"] = {
+ "scripted": ([100.0]*10,[87.1,89.4,98.0,88.8,100.0,97.0,92.6,100.0,91.1,100.0]),
+ "s11": ([100.0,100.0,100.0,100.0,100.0,100.0,81.5,100.0,95.9,100.0],[95.3,92.6,96.2,87.8,100.0,69.0,67.9,89.1,87.0,86.9]),
+ "s23": ([80.9,83.2,100.0,92.6,100.0,87.4,83.2,100.0,100.0,80.9],[72.2,96.4,97.8,69.5,91.3,74.5,76.6,85.0,79.1,83.6]),
+ "s37": ([100.0,100.0,100.0,100.0,100.0,65.9,100.0,77.8,100.0,80.7],[53.0,93.4,86.8,96.5,46.6,87.6,100.0,55.0,74.4,26.9]),
 }
 root, name = sys.argv[1], sys.argv[2]
 method = sys.argv[4] if len(sys.argv) > 4 else "red"
