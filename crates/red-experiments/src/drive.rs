@@ -199,6 +199,21 @@ pub struct DriveTrainConfig {
     /// 0.03). `None` (the default) keeps the road's.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub train_start_heading_noise: Option<f64>,
+    /// Smallest gap between two stopped cars on the training roads, metres
+    /// (our addition): below the road's `obstacle_spacing_min` (70 m),
+    /// every training road carries more stopped cars, so the learner meets
+    /// more of the lane changes a demonstration may never show. `None`
+    /// (the default) keeps the road's; checks and evaluations always keep
+    /// it (a training episode on the run's own road under
+    /// `demo_road_share` drives it with these gaps). Needs
+    /// `train_roads > 0`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub train_obstacle_spacing_min: Option<f64>,
+    /// The random part of the training roads' gaps (`U(0, this)` is added
+    /// to `train_obstacle_spacing_min`), as that field; the road's
+    /// `obstacle_spacing_jitter` is 50 m. `None` (the default) keeps it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub train_obstacle_spacing_jitter: Option<f64>,
     /// The terminal heuristic's penalty `-σ2 r̄` at every crash (our
     /// addition; RED and AE, the methods with the heuristic). The paper's
     /// test (Eq. 8) penalises an ending only when its final pair's reward
@@ -464,6 +479,8 @@ impl Default for DriveTrainConfig {
             mirror_demos: false,
             train_start_lateral_noise: None,
             train_start_heading_noise: None,
+            train_obstacle_spacing_min: None,
+            train_obstacle_spacing_jitter: None,
             penalise_every_crash: false,
             spare_the_finish: false,
             stall_end: Some(StallRule {
@@ -676,6 +693,17 @@ impl DriveTrainConfig {
                     .into(),
             ));
         }
+        if self.train_roads == 0
+            && (self.train_obstacle_spacing_min.is_some()
+                || self.train_obstacle_spacing_jitter.is_some())
+        {
+            return Err(invalid(
+                "train.train_obstacle_spacing_min",
+                "needs train_roads > 0 (on the demonstration's own road other gaps would move \
+                 its stopped cars): set train_roads, or drop the training gaps"
+                    .into(),
+            ));
+        }
         if self.demo_starts > 0.0 && self.train_roads > 0 {
             return Err(invalid(
                 "train.demo_starts",
@@ -765,7 +793,10 @@ impl DriveRunConfig {
         self.train.validate()?;
         training_road(&self.drive, &self.train)
             .validate()
-            .with_context(|| "train.train_start_lateral_noise / train.train_start_heading_noise")
+            .with_context(|| {
+                "train.train_start_lateral_noise / train.train_start_heading_noise / \
+                 train.train_obstacle_spacing_min / train.train_obstacle_spacing_jitter"
+            })
     }
 
     /// The track seeds of the unseen roads.
@@ -1833,9 +1864,15 @@ impl EpisodeHooks<Learner, ChaCha8Rng> for MethodHooks<'_> {
 }
 
 /// The road settings of the training episodes: the run's, with the
-/// training start noise of `cfg` where it sets one.
+/// training start noise and obstacle gaps of `cfg` where it sets them.
 fn training_road(drive: &DriveConfig, cfg: &DriveTrainConfig) -> DriveConfig {
     DriveConfig {
+        obstacle_spacing_min: cfg
+            .train_obstacle_spacing_min
+            .unwrap_or(drive.obstacle_spacing_min),
+        obstacle_spacing_jitter: cfg
+            .train_obstacle_spacing_jitter
+            .unwrap_or(drive.obstacle_spacing_jitter),
         start_lateral_noise: cfg
             .train_start_lateral_noise
             .unwrap_or(drive.start_lateral_noise),
@@ -2689,6 +2726,53 @@ mod tests {
         c.train.train_start_lateral_noise = Some(f64::NAN);
         let e = c.validate().unwrap_err().to_string();
         assert!(e.contains("train.train_start_lateral_noise"), "{e}");
+    }
+
+    #[test]
+    fn training_gaps_change_the_training_roads_only_and_are_checked() {
+        let mut c = DriveRunConfig::new("x.json", DriveConfig::default());
+        let json = serde_json::to_string(&c.train).unwrap();
+        assert!(!json.contains("obstacle"), "{json}");
+        c.train.train_obstacle_spacing_min = Some(45.0);
+        c.train.train_obstacle_spacing_jitter = Some(30.0);
+        c.validate().unwrap();
+        let t = training_road(&c.drive, &c.train);
+        assert_eq!(
+            (t.obstacle_spacing_min, t.obstacle_spacing_jitter),
+            (45.0, 30.0)
+        );
+        assert_eq!(
+            (
+                c.drive.obstacle_spacing_min,
+                c.drive.obstacle_spacing_jitter
+            ),
+            (70.0, 50.0)
+        );
+        // A training road with these gaps carries more stopped cars than the same road without.
+        let count = |d: &DriveConfig| red_drive::Track::generate(d).obstacles.len();
+        let road = DriveConfig {
+            track_seed: TRAIN_FIRST_TRACK_SEED,
+            ..c.drive.clone()
+        };
+        let dense = DriveConfig {
+            track_seed: TRAIN_FIRST_TRACK_SEED,
+            ..t
+        };
+        assert!(
+            count(&dense) > count(&road),
+            "{} vs {}",
+            count(&dense),
+            count(&road)
+        );
+        // Gaps shorter than two cars: refused before any training, naming the fields.
+        c.train.train_obstacle_spacing_min = Some(5.0);
+        let e = format!("{:#}", c.validate().unwrap_err());
+        assert!(e.contains("train_obstacle_spacing_min"), "{e}");
+        // On the demonstration's own road alone: refused.
+        c.train.train_obstacle_spacing_min = Some(45.0);
+        c.train.train_roads = 0;
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("train_roads"), "{e}");
     }
 
     #[test]
