@@ -94,7 +94,7 @@ struct CommonRunArgs {
     pub eval_episodes: Option<usize>,
     /// A fixed sigma1 for `red` and `ae` (default: calibrated so that 90%
     /// of the expert pairs get a reward of at least 0.9; at least 0.5 for
-    /// `red` on Ant and HalfCheetah).
+    /// `red` on Ant, HalfCheetah, Walker2d).
     #[arg(long, conflicts_with = "release_sigma1")]
     pub sigma1: Option<f64>,
     /// Use the RED release's hand-set sigma1 of the task and method.
