@@ -126,7 +126,9 @@ fn probe(
         "reward fitted on the actions {}, and scores them so",
         if clips { "clipped" } else { "as stored" }
     );
-    let settings = cfg.reward_settings();
+    // The epochs a run uses for this many pairs (`epochs_reference_pairs`).
+    let scaled = cfg.scaled_for_pairs(s.nrows());
+    let settings = scaled.reward_settings();
     let seeder = Seeder::new(seed);
     let mut rng = seeder.rng(Stream::Estimator);
     let t = std::time::Instant::now();

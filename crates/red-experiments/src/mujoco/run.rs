@@ -226,6 +226,29 @@ pub struct RunConfig {
     /// -11.37 and -10.56. SAC runs have none (they start from a random
     /// policy).
     pub bc_warm_start_epochs: usize,
+    /// The number of demonstration pairs the epochs of the reward's fit
+    /// (`rnd.epochs`, `autoencoder.epochs`) and of the warm start
+    /// (`bc_warm_start_epochs`) are set for; 0 turns the scaling off. A
+    /// demonstration of fewer pairs is gone through more often, so that
+    /// the fit and the warm start take about as many Adam steps as on this
+    /// many pairs: the epochs are multiplied by this number over the
+    /// demonstration's pairs, rounded to the nearest whole number (so a
+    /// set with at least two thirds of the pairs keeps its epochs).
+    /// Default: 4 x the task's time limit for `red` (the paper's four
+    /// trajectories: 4000 pairs, Reacher 200), so one trajectory of 1000
+    /// steps gets 400 warm-start and 800 RND epochs; 0 for the other
+    /// methods (not measured). Measured reason (session 49,
+    /// docs/results/mujoco.md): RED on HalfCheetah from one trajectory of
+    /// the SAC expert (6819.4), 2M steps, seeds 0-2: 4281.58, 5013.82,
+    /// 3592.94 unscaled, 6030.92, 6112.01, 6052.18 scaled (88-90%); the
+    /// reward fitted on that trajectory already ranked the other three
+    /// expert episodes (0.654 per step) and a 6531-return policy (0.679)
+    /// above the unscaled runs' policies (0.579 and 0.386): the warm start
+    /// with a quarter of the steps, not the reward, held them back. A
+    /// `config.json` without the field (written before session 49) reads
+    /// as 0, as it ran.
+    #[serde(default)]
+    pub epochs_reference_pairs: usize,
     /// Epochs of the `bc` method. Default 100 (our choice: the release does
     /// not report BC alone on MuJoCo; 100 epochs over 4000 pairs is about
     /// 3,100 Adam steps, where the training loss has flattened).
@@ -409,6 +432,11 @@ impl RunConfig {
             gmmil: GmmilConfig::default(),
             bc: BcConfig::default(),
             bc_warm_start_epochs,
+            epochs_reference_pairs: if method == Method::Red {
+                4 * env.max_episode_steps()
+            } else {
+                0
+            },
             bc_epochs: 100,
             freeze_obs_norm_from_demo: matches!(method, Method::Red | Method::Ae | Method::Bc),
             checkpoint_every: 50,
@@ -531,6 +559,28 @@ impl RunConfig {
             gail: &self.gail,
             gmmil: &self.gmmil,
         }
+    }
+
+    /// How many times the epochs of the reward's fit and of the warm start
+    /// are multiplied for a demonstration of `pairs` pairs (see
+    /// [`RunConfig::epochs_reference_pairs`]): 1 when the scaling is off or
+    /// the demonstration holds at least two thirds of the reference.
+    pub fn epochs_factor(&self, pairs: usize) -> usize {
+        if self.epochs_reference_pairs == 0 || pairs == 0 {
+            return 1;
+        }
+        ((self.epochs_reference_pairs as f64 / pairs as f64).round() as usize).max(1)
+    }
+
+    /// These settings with the epochs of the reward's fit and of the warm
+    /// start multiplied by [`RunConfig::epochs_factor`] for `pairs`.
+    pub fn scaled_for_pairs(&self, pairs: usize) -> RunConfig {
+        let k = self.epochs_factor(pairs);
+        let mut c = self.clone();
+        c.rnd.epochs *= k;
+        c.autoencoder.epochs *= k;
+        c.bc_warm_start_epochs *= k;
+        c
     }
 
     /// These settings overwritten by the fields of the JSON object `json`
@@ -863,7 +913,7 @@ fn fresh_state(
         && let Some((es, ea)) = &pairs
     {
         let bc = BcConfig {
-            epochs: cfg.bc_warm_start_epochs,
+            epochs: cfg.scaled_for_pairs(es.nrows()).bc_warm_start_epochs,
             ..cfg.bc.clone()
         };
         let mut rng = seeder.rng(Stream::Other(1));
@@ -880,7 +930,8 @@ fn fresh_state(
 }
 
 /// The run's imitation reward fitted on the expert pairs `es`, `ea` (from
-/// [`reward_pairs`]) with the seed's estimator stream; `None` for `expert`
+/// [`reward_pairs`]) with the seed's estimator stream, its epochs scaled
+/// for their number ([`RunConfig::scaled_for_pairs`]); `None` for `expert`
 /// and `bc`.
 pub(super) fn fit_run_reward(
     cfg: &RunConfig,
@@ -888,7 +939,8 @@ pub(super) fn fit_run_reward(
     ea: &Array2<f64>,
 ) -> Result<Option<ImitationReward>> {
     let seeder = Seeder::new(cfg.seed);
-    let settings = cfg.reward_settings();
+    let scaled = cfg.scaled_for_pairs(es.nrows());
+    let settings = scaled.reward_settings();
     let mut rng = seeder.rng(Stream::Estimator);
     let gail_seed = seeder.derive(Stream::Estimator);
     fit_reward(
@@ -914,8 +966,17 @@ pub(super) fn fitted_reward_note(
     };
     let (es, ea) = reward_pairs(cfg, demos, action_box)?;
     let on = r.rewards(es.view(), ea.view())?;
+    let k = cfg.epochs_factor(es.nrows());
+    let scaled = if k > 1 {
+        format!(
+            " (fewer than the {} pairs of the defaults: fit and warm-start epochs x{k})",
+            cfg.epochs_reference_pairs
+        )
+    } else {
+        String::new()
+    };
     Ok(Some(format!(
-        "{} fitted on {} expert pairs: sigma1 {}, expert pairs' reward mean {:.3}, min {:.3}",
+        "{} fitted on {} expert pairs{scaled}: sigma1 {}, expert pairs' reward mean {:.3}, min {:.3}",
         cfg.method.label(),
         es.nrows(),
         r.sigma1(),
@@ -1883,16 +1944,38 @@ mod tests {
             }
         }
         assert!(files.len() >= 8, "{files:?}");
+        let all = [
+            EnvId::Hopper,
+            EnvId::HalfCheetah,
+            EnvId::Walker2d,
+            EnvId::Ant,
+            EnvId::Reacher,
+        ];
         for path in files {
             let name = path.file_stem().unwrap().to_string_lossy().into_owned();
-            let env = name
-                .split('-')
-                .find_map(|w| w.parse::<EnvId>().ok())
-                .unwrap_or_else(|| panic!("no task in the name {}", path.display()));
-            let text = std::fs::read_to_string(&path).unwrap();
+            // a file without a task in its name applies to every task
+            let envs: Vec<EnvId> = match name.split('-').find_map(|w| w.parse::<EnvId>().ok()) {
+                Some(env) => vec![env],
+                None => all.to_vec(),
+            };
+            for env in envs {
+                check_restoring_file(&path, &name, env);
+            }
+        }
+    }
+
+    fn check_restoring_file(path: &Path, name: &str, env: EnvId) {
+        {
+            let text = std::fs::read_to_string(path).unwrap();
             let cfg = RunConfig::for_task(env, Method::Red)
-                .with_overrides(&text, &path)
+                .with_overrides(&text, path)
                 .unwrap();
+            // Every file restores runs made before session 49, which fitted
+            // and warm-started with unscaled epochs.
+            assert_eq!(cfg.epochs_reference_pairs, 0, "{}", path.display());
+            if name == "mujoco-red-epochs-unscaled" {
+                return;
+            }
             // and every Hopper and HalfCheetah file restores the release's
             // discount, which RED on them used until sessions 47 and 48;
             // every HalfCheetah file also the reward rule of 0.9 it used
@@ -1920,10 +2003,71 @@ mod tests {
             if name == "mujoco-red-hopper-gamma-0.97" {
                 // the defaults of sessions 27-46: clipping on.
                 assert!(cfg.reward_clips_actions);
-                continue;
+                return;
             }
             assert!(!cfg.reward_clips_actions, "{}", path.display());
         }
+    }
+
+    #[test]
+    fn red_goes_through_a_short_demonstration_as_often_as_through_four_trajectories() {
+        let h = RunConfig::for_task(EnvId::HalfCheetah, Method::Red);
+        assert_eq!(h.epochs_reference_pairs, 4000);
+        // one trajectory: four times the epochs; two: twice; three or a
+        // set whose episodes end a little early: as many as four.
+        let factors: Vec<usize> = [1000, 2000, 3000, 3900, 4000, 8000]
+            .iter()
+            .map(|&n| h.epochs_factor(n))
+            .collect();
+        assert_eq!(factors, [4, 2, 1, 1, 1, 1]);
+        let one = h.scaled_for_pairs(1000);
+        assert_eq!((one.rnd.epochs, one.bc_warm_start_epochs), (800, 400));
+        assert_eq!(h.scaled_for_pairs(4000), h);
+        let r = RunConfig::for_task(EnvId::Reacher, Method::Red);
+        assert_eq!((r.epochs_reference_pairs, r.epochs_factor(50)), (200, 4));
+        // other methods are not scaled, and an old config.json reads as it ran
+        for m in [Method::Ae, Method::Gail, Method::Gmmil, Method::Bc] {
+            assert_eq!(RunConfig::for_task(EnvId::Hopper, m).epochs_factor(100), 1);
+        }
+        let mut v = serde_json::to_value(&h).unwrap();
+        v.as_object_mut().unwrap().remove("epochs_reference_pairs");
+        let back: RunConfig =
+            crate::run_dir::parse_json(&v.to_string(), Path::new("config.json")).unwrap();
+        assert_eq!(back.epochs_factor(1000), 1);
+    }
+
+    #[test]
+    fn the_reward_of_a_short_demonstration_is_fitted_with_the_scaled_epochs() {
+        // 50 pairs of Reacher, a quarter of its reference: the run's fit is
+        // the fit with four times the epochs and the scaling off.
+        use rand::RngExt;
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let es = Array2::from_shape_fn((50, 10), |_| rng.random_range(-1.0..1.0));
+        let ea = Array2::from_shape_fn((50, 2), |_| rng.random_range(-1.0..1.0));
+        let mut cfg = RunConfig::for_task(EnvId::Reacher, Method::Red);
+        cfg.rnd.epochs = 5;
+        let scaled = fit_run_reward(&cfg, &es, &ea).unwrap().unwrap();
+        let mut manual = cfg.clone();
+        manual.rnd.epochs = 20;
+        manual.epochs_reference_pairs = 0;
+        let by_hand = fit_run_reward(&manual, &es, &ea).unwrap().unwrap();
+        let plain = {
+            let mut c = cfg.clone();
+            c.epochs_reference_pairs = 0;
+            fit_run_reward(&c, &es, &ea).unwrap().unwrap()
+        };
+        let (ImitationReward::Support(a), ImitationReward::Support(b), ImitationReward::Support(c)) =
+            (&scaled, &by_hand, &plain)
+        else {
+            panic!("RED's reward is a support reward");
+        };
+        let (ra, rb, rc) = (
+            a.rewards(es.view(), ea.view()).unwrap(),
+            b.rewards(es.view(), ea.view()).unwrap(),
+            c.rewards(es.view(), ea.view()).unwrap(),
+        );
+        assert_eq!(ra, rb);
+        assert_ne!(ra, rc);
     }
 
     #[test]
