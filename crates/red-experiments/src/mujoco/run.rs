@@ -246,8 +246,9 @@ pub struct RunConfig {
     /// above the unscaled runs' policies (0.579 and 0.386): the warm start
     /// with a quarter of the steps, not the reward, held them back. A
     /// `config.json` without the field (written before session 49) reads
-    /// as 0, as it ran.
-    #[serde(default)]
+    /// as 0, as it ran; 0 is not written, so the settings saved in such a
+    /// run's checkpoint still match when it is resumed.
+    #[serde(default, skip_serializing_if = "is_zero")]
     pub epochs_reference_pairs: usize,
     /// Epochs of the `bc` method. Default 100 (our choice: the release does
     /// not report BC alone on MuJoCo; 100 epochs over 4000 pairs is about
@@ -277,6 +278,12 @@ pub struct RunConfig {
     /// SAC's settings, used when `learner` is `sac`.
     #[serde(default)]
     pub sac: SacRunConfig,
+}
+
+/// For `skip_serializing_if`: a setting whose 0 is what a file without it
+/// means.
+fn is_zero(v: &usize) -> bool {
+    *v == 0
 }
 
 /// The learner of a MuJoCo run.
@@ -2034,6 +2041,52 @@ mod tests {
         let back: RunConfig =
             crate::run_dir::parse_json(&v.to_string(), Path::new("config.json")).unwrap();
         assert_eq!(back.epochs_factor(1000), 1);
+        // and writes no field, so that it matches the settings saved in
+        // the checkpoints of runs made before the field existed
+        let again = serde_json::to_value(checkpoint_settings(&back)).unwrap();
+        assert!(again.get("epochs_reference_pairs").is_none());
+        assert_eq!(
+            again,
+            serde_json::to_value(checkpoint_settings(&back)).unwrap()
+        );
+        assert_eq!(
+            serde_json::to_value(&h).unwrap()["epochs_reference_pairs"],
+            4000
+        );
+    }
+
+    #[test]
+    fn the_warm_start_of_a_short_demonstration_takes_the_scaled_epochs() {
+        use rand::RngExt;
+        // one Reacher episode of 50 pairs, a quarter of the reference
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut d = Demos::new("Reacher-v5", 10, 2, None);
+        d.trajectories.push(red_core::Trajectory {
+            observations: (0..50)
+                .map(|_| (0..10).map(|_| rng.random_range(-1.0..1.0)).collect())
+                .collect(),
+            actions: (0..50)
+                .map(|_| (0..2).map(|_| rng.random_range(-1.0..1.0)).collect())
+                .collect(),
+            rewards: None,
+            end: red_core::EpisodeEnd::Truncated,
+        });
+        let b = BoxSpace::uniform(2, -1.0, 1.0);
+        let mut cfg = RunConfig::for_task(EnvId::Reacher, Method::Red);
+        cfg.demo = Some("unused.json".into());
+        (cfg.bc_warm_start_epochs, cfg.rnd.epochs) = (3, 2);
+        let policy = |c: &RunConfig| {
+            let s = fresh_state(c, Some(&d), 10, &b).unwrap();
+            serde_json::to_string(s.trainer.policy()).unwrap()
+        };
+        let mut by_hand = cfg.clone();
+        (by_hand.bc_warm_start_epochs, by_hand.rnd.epochs) = (12, 8);
+        by_hand.epochs_reference_pairs = 0;
+        let mut plain = cfg.clone();
+        plain.epochs_reference_pairs = 0;
+        let scaled = policy(&cfg);
+        assert_eq!(scaled, policy(&by_hand));
+        assert_ne!(scaled, policy(&plain));
     }
 
     #[test]
