@@ -226,6 +226,34 @@ impl Demos {
         (s, a)
     }
 
+    /// The state dimensions that hold an episode's context rather than its
+    /// behaviour: constant within every trajectory (to 1e-9 relative) but
+    /// not the same in all of them, such as Reacher's target. Empty for
+    /// fewer than two trajectories or a trajectory of fewer than two steps
+    /// (nothing then tells a context from a single value).
+    pub fn context_dims(&self) -> Vec<usize> {
+        if self.trajectories.len() < 2 || self.trajectories.iter().any(|t| t.len() < 2) {
+            return Vec::new();
+        }
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * (1.0 + a.abs().max(b.abs()));
+        (0..self.obs_dim)
+            .filter(|&j| {
+                let value = |o: &Vec<f64>| o.get(j).copied().unwrap_or(0.0);
+                let firsts: Vec<f64> = self
+                    .trajectories
+                    .iter()
+                    .map(|t| value(&t.observations[0]))
+                    .collect();
+                let constant = self
+                    .trajectories
+                    .iter()
+                    .zip(&firsts)
+                    .all(|(t, &v0)| t.observations.iter().all(|o| close(value(o), v0)));
+                constant && firsts.iter().any(|&v| !close(v, firsts[0]))
+            })
+            .collect()
+    }
+
     /// The length of each trajectory.
     pub fn lengths(&self) -> Vec<usize> {
         self.trajectories.iter().map(Trajectory::len).collect()
@@ -645,5 +673,39 @@ mod tests {
         assert_eq!(round_significant(-0.000123456789, 3), -0.000123);
         assert_eq!(round_significant(0.0, 6), 0.0);
         assert!(round_significant(f64::NAN, 2).is_nan());
+    }
+
+    fn traj(rows: &[[f64; 3]]) -> Trajectory {
+        Trajectory {
+            observations: rows.iter().map(|r| r.to_vec()).collect(),
+            actions: rows.iter().map(|_| vec![0.0]).collect(),
+            rewards: None,
+            end: EpisodeEnd::Truncated,
+        }
+    }
+
+    #[test]
+    fn context_dims_are_constant_within_each_trajectory_and_differ_between() {
+        let mut d = Demos::new("x", 3, 1, None);
+        // dim 0 moves, dim 1 is each episode's own constant, dim 2 is one
+        // constant everywhere (not a context: nothing varies).
+        d.trajectories
+            .push(traj(&[[0.0, 0.3, 7.0], [1.0, 0.3, 7.0]]));
+        assert!(d.context_dims().is_empty(), "one trajectory");
+        d.trajectories
+            .push(traj(&[[2.0, -0.1, 7.0], [0.5, -0.1, 7.0]]));
+        assert_eq!(d.context_dims(), vec![1]);
+        // a value that moves within one trajectory is behaviour
+        d.trajectories
+            .push(traj(&[[1.0, 0.2, 7.0], [1.5, 0.2 + 1e-6, 7.0]]));
+        assert!(d.context_dims().is_empty());
+        // rounding noise far below the tolerance does not
+        d.trajectories.pop();
+        d.trajectories
+            .push(traj(&[[1.0, 0.2, 7.0], [1.5, 0.2 + 1e-12, 7.0]]));
+        assert_eq!(d.context_dims(), vec![1]);
+        // a one-step trajectory tells nothing
+        d.trajectories.push(traj(&[[1.0, 0.5, 7.0]]));
+        assert!(d.context_dims().is_empty());
     }
 }

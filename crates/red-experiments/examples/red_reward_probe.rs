@@ -126,8 +126,14 @@ fn probe(
         "reward fitted on the actions {}, and scores them so",
         if clips { "clipped" } else { "as stored" }
     );
-    // The epochs a run uses for this many pairs (`epochs_reference_pairs`).
-    let scaled = cfg.scaled_for_pairs(s.nrows());
+    // The settings a run fits with: the epochs for this many pairs
+    // (`epochs_reference_pairs`) and the context left out if set.
+    let scaled = cfg.reward_fit_config(s.nrows(), &demos.context_dims());
+    println!(
+        "context dimensions {:?}; left out of the reward: {:?}",
+        demos.context_dims(),
+        scaled.rnd.ignored_state_dims
+    );
     let settings = scaled.reward_settings();
     let seeder = Seeder::new(seed);
     let mut rng = seeder.rng(Stream::Estimator);

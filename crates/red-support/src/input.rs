@@ -25,6 +25,10 @@ pub struct InputMap {
     /// Per-dimension scale `[s, a]` is divided by (ones when not
     /// standardising).
     pub scale: Vec<f64>,
+    /// State dimensions the estimator does not see: they read as 0 in
+    /// every row (our addition; empty, the release's, keeps every input).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ignored: Vec<usize>,
 }
 
 impl InputMap {
@@ -91,7 +95,30 @@ impl InputMap {
             act_dim,
             mean,
             scale,
+            ignored: Vec::new(),
         })
+    }
+
+    /// The same map with the state dimensions `dims` read as 0 in every
+    /// row, whatever their value (sorted, each once).
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for a dimension at or beyond `obs_dim`.
+    pub fn ignoring(mut self, dims: &[usize]) -> Result<Self> {
+        if let Some(&d) = dims.iter().find(|&&d| d >= self.obs_dim) {
+            return Err(Error::InvalidConfig {
+                field: "ignored_state_dims".into(),
+                reason: format!(
+                    "state dimension {d} does not exist: states have {} dimensions (0..{})",
+                    self.obs_dim, self.obs_dim
+                ),
+            });
+        }
+        let mut dims = dims.to_vec();
+        dims.sort_unstable();
+        dims.dedup();
+        self.ignored = dims;
+        Ok(self)
     }
 
     /// Length of an input row, `obs_dim + act_dim`.
@@ -114,6 +141,9 @@ impl InputMap {
         for mut row in x.rows_mut() {
             for (j, v) in row.iter_mut().enumerate() {
                 *v = (*v - self.mean[j]) / self.scale[j];
+            }
+            for &j in &self.ignored {
+                row[j] = 0.0;
             }
         }
         Ok(x)
@@ -224,6 +254,36 @@ mod tests {
         assert_eq!(plain, InputMap::fit(s.view(), a.view(), true).unwrap());
         assert_eq!(plain.scale[2], 1.0);
         assert!((plain.scale[1] - 0.01).abs() < 1e-12);
+    }
+
+    #[test]
+    fn ignored_state_dims_read_as_zero_and_the_rest_is_unchanged() {
+        let s = array![[1.0, 5.0, -3.0], [3.0, 6.0, 4.0]];
+        let a = array![[0.5], [1.5]];
+        let map = InputMap::fit(s.view(), a.view(), true).unwrap();
+        let full = map.apply(s.view(), a.view()).unwrap();
+        let some = map.clone().ignoring(&[2, 0, 2]).unwrap();
+        assert_eq!(some.ignored, vec![0, 2]);
+        let x = some.apply(s.view(), a.view()).unwrap();
+        for r in 0..2 {
+            assert_eq!(x[[r, 0]], 0.0);
+            assert_eq!(x[[r, 2]], 0.0);
+            assert_eq!(x[[r, 1]], full[[r, 1]]);
+            assert_eq!(x[[r, 3]], full[[r, 3]]);
+        }
+        // any value of an ignored dimension gives the same row
+        let far = some
+            .apply(array![[100.0, 5.0, -70.0]].view(), array![[0.5]].view())
+            .unwrap();
+        assert_eq!(far.row(0), x.row(0));
+        let e = map.ignoring(&[3]).unwrap_err();
+        assert!(e.to_string().contains("ignored_state_dims"), "{e}");
+        // a map saved without the field reads back with none ignored
+        let json =
+            serde_json::to_string(&InputMap::fit(s.view(), a.view(), true).unwrap()).unwrap();
+        assert!(!json.contains("ignored"), "{json}");
+        let back: InputMap = serde_json::from_str(&json).unwrap();
+        assert!(back.ignored.is_empty());
     }
 
     #[test]

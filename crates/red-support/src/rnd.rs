@@ -62,6 +62,11 @@ pub struct RndConfig {
     /// as expert-like. Random biases put the target's kinks inside the
     /// cloud.
     pub target_bias: f32,
+    /// State dimensions the estimator does not see (our addition; empty,
+    /// the release's, keeps every input): they read as 0 whatever their
+    /// value, in the fit and in every score.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub ignored_state_dims: Vec<usize>,
 }
 
 impl Default for RndConfig {
@@ -84,6 +89,7 @@ impl Default for RndConfig {
             standardize: false,
             min_std: 0.0,
             target_bias: 0.0,
+            ignored_state_dims: Vec::new(),
         }
     }
 }
@@ -364,7 +370,8 @@ impl SupportEstimatorConfig for RndConfig {
         progress: &mut dyn FnMut(FitProgress),
     ) -> Result<Rnd> {
         self.validate()?;
-        let input = InputMap::fit_floored(states, actions, self.standardize, self.min_std)?;
+        let input = InputMap::fit_floored(states, actions, self.standardize, self.min_std)?
+            .ignoring(&self.ignored_state_dims)?;
         let x = to_f32(input.apply(states, actions)?.view());
         let d = input.dim();
         let mut pairs = Vec::with_capacity(self.ensemble);

@@ -250,6 +250,16 @@ pub struct RunConfig {
     /// run's checkpoint still match when it is resumed.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub epochs_reference_pairs: usize,
+    /// Whether RED's reward leaves out the demonstrations' context: the
+    /// state dimensions constant within every trajectory but not the same
+    /// in all ([`Demos::context_dims`], e.g. Reacher's target). They read
+    /// as 0 in the RND's input (added to `rnd.ignored_state_dims`). A few
+    /// trajectories show a few values of a context, so every new episode's
+    /// context is off their support whatever the agent does. Default:
+    /// false (under measurement). A `config.json` without the field reads
+    /// as false; false is not written, so older checkpoints resume.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub reward_ignores_context: bool,
     /// Epochs of the `bc` method. Default 100 (our choice: the release does
     /// not report BC alone on MuJoCo; 100 epochs over 4000 pairs is about
     /// 3,100 Adam steps, where the training loss has flattened).
@@ -284,6 +294,10 @@ pub struct RunConfig {
 /// means.
 fn is_zero(v: &usize) -> bool {
     *v == 0
+}
+
+fn is_false(v: &bool) -> bool {
+    !*v
 }
 
 /// The learner of a MuJoCo run.
@@ -444,6 +458,7 @@ impl RunConfig {
             } else {
                 0
             },
+            reward_ignores_context: false,
             bc_epochs: 100,
             freeze_obs_norm_from_demo: matches!(method, Method::Red | Method::Ae | Method::Bc),
             checkpoint_every: 50,
@@ -587,6 +602,21 @@ impl RunConfig {
         c.rnd.epochs *= k;
         c.autoencoder.epochs *= k;
         c.bc_warm_start_epochs *= k;
+        c
+    }
+
+    /// The settings the imitation reward is fitted with on `pairs` pairs
+    /// whose context dimensions are `context` ([`Demos::context_dims`]):
+    /// the epochs scaled ([`RunConfig::scaled_for_pairs`]) and, with
+    /// [`RunConfig::reward_ignores_context`], `context` added to
+    /// `rnd.ignored_state_dims`.
+    pub fn reward_fit_config(&self, pairs: usize, context: &[usize]) -> RunConfig {
+        let mut c = self.scaled_for_pairs(pairs);
+        if self.reward_ignores_context {
+            c.rnd.ignored_state_dims.extend_from_slice(context);
+            c.rnd.ignored_state_dims.sort_unstable();
+            c.rnd.ignored_state_dims.dedup();
+        }
         c
     }
 
@@ -914,7 +944,10 @@ fn fresh_state(
             });
         }
         None => None,
-        Some((es, ea)) => fit_run_reward(cfg, es, ea)?,
+        Some((es, ea)) => {
+            let context = demos.map(Demos::context_dims).unwrap_or_default();
+            fit_run_reward(cfg, es, ea, &context)?
+        }
     };
     if cfg.bc_warm_start_epochs > 0
         && let Some((es, ea)) = &pairs
@@ -944,9 +977,10 @@ pub(super) fn fit_run_reward(
     cfg: &RunConfig,
     es: &Array2<f64>,
     ea: &Array2<f64>,
+    context: &[usize],
 ) -> Result<Option<ImitationReward>> {
     let seeder = Seeder::new(cfg.seed);
-    let scaled = cfg.scaled_for_pairs(es.nrows());
+    let scaled = cfg.reward_fit_config(es.nrows(), context);
     let settings = scaled.reward_settings();
     let mut rng = seeder.rng(Stream::Estimator);
     let gail_seed = seeder.derive(Stream::Estimator);
@@ -974,7 +1008,7 @@ pub(super) fn fitted_reward_note(
     let (es, ea) = reward_pairs(cfg, demos, action_box)?;
     let on = r.rewards(es.view(), ea.view())?;
     let k = cfg.epochs_factor(es.nrows());
-    let scaled = if k > 1 {
+    let mut scaled = if k > 1 {
         format!(
             " (fewer than the {} pairs of the defaults: fit and warm-start epochs x{k})",
             cfg.epochs_reference_pairs
@@ -982,6 +1016,12 @@ pub(super) fn fitted_reward_note(
     } else {
         String::new()
     };
+    let context = demos.context_dims();
+    if cfg.reward_ignores_context && !context.is_empty() && cfg.method == Method::Red {
+        scaled += &format!(
+            " (state dimensions {context:?} are each trajectory's constant context: left out)"
+        );
+    }
     Ok(Some(format!(
         "{} fitted on {} expert pairs{scaled}: sigma1 {}, expert pairs' reward mean {:.3}, min {:.3}",
         cfg.method.label(),
@@ -2093,15 +2133,15 @@ mod tests {
         let ea = Array2::from_shape_fn((50, 2), |_| rng.random_range(-1.0..1.0));
         let mut cfg = RunConfig::for_task(EnvId::Reacher, Method::Red);
         cfg.rnd.epochs = 5;
-        let scaled = fit_run_reward(&cfg, &es, &ea).unwrap().unwrap();
+        let scaled = fit_run_reward(&cfg, &es, &ea, &[]).unwrap().unwrap();
         let mut manual = cfg.clone();
         manual.rnd.epochs = 20;
         manual.epochs_reference_pairs = 0;
-        let by_hand = fit_run_reward(&manual, &es, &ea).unwrap().unwrap();
+        let by_hand = fit_run_reward(&manual, &es, &ea, &[]).unwrap().unwrap();
         let plain = {
             let mut c = cfg.clone();
             c.epochs_reference_pairs = 0;
-            fit_run_reward(&c, &es, &ea).unwrap().unwrap()
+            fit_run_reward(&c, &es, &ea, &[]).unwrap().unwrap()
         };
         let (ImitationReward::Support(a), ImitationReward::Support(b), ImitationReward::Support(c)) =
             (&scaled, &by_hand, &plain)
@@ -2115,6 +2155,58 @@ mod tests {
         );
         assert_eq!(ra, rb);
         assert_ne!(ra, rc);
+    }
+
+    #[test]
+    fn the_context_is_left_out_of_the_reward_only_when_asked() {
+        // 40 pairs of Reacher whose dims 4 and 5 are a context: the reward
+        // fitted with the flag ignores them (any value scores the same)
+        // and equals the fit with those dims ignored by hand.
+        use rand::RngExt;
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let es = Array2::from_shape_fn((40, 10), |(i, j)| match j {
+            4 | 5 => (i / 20) as f64 * 0.1 - 0.05,
+            _ => rng.random_range(-1.0..1.0),
+        });
+        let ea = Array2::from_shape_fn((40, 2), |_| rng.random_range(-1.0..1.0));
+        let mut cfg = RunConfig::for_task(EnvId::Reacher, Method::Red);
+        cfg.rnd.epochs = 2;
+        assert!(!cfg.reward_ignores_context);
+        assert!(
+            cfg.reward_fit_config(40, &[4, 5])
+                .rnd
+                .ignored_state_dims
+                .is_empty()
+        );
+        let mut on = cfg.clone();
+        on.reward_ignores_context = true;
+        on.rnd.ignored_state_dims = vec![5, 9];
+        assert_eq!(
+            on.reward_fit_config(40, &[4, 5]).rnd.ignored_state_dims,
+            vec![4, 5, 9]
+        );
+        on.rnd.ignored_state_dims.clear();
+        let fitted = fit_run_reward(&on, &es, &ea, &[4, 5]).unwrap().unwrap();
+        let mut by_hand = cfg.clone();
+        by_hand.rnd.ignored_state_dims = vec![4, 5];
+        let manual = fit_run_reward(&by_hand, &es, &ea, &[]).unwrap().unwrap();
+        let plain = fit_run_reward(&cfg, &es, &ea, &[4, 5]).unwrap().unwrap();
+        let mut moved = es.clone();
+        moved.column_mut(4).fill(0.7);
+        moved.column_mut(5).fill(-0.3);
+        let r = |f: &ImitationReward, s: &Array2<f64>| f.rewards(s.view(), ea.view()).unwrap();
+        assert_eq!(r(&fitted, &es), r(&manual, &es));
+        assert_eq!(r(&fitted, &es), r(&fitted, &moved));
+        assert_ne!(r(&plain, &es), r(&plain, &moved));
+        // false is not written, and a config without the field reads false
+        let v = serde_json::to_value(&cfg).unwrap();
+        assert!(v.get("reward_ignores_context").is_none());
+        let back: RunConfig = serde_json::from_value(v).unwrap();
+        assert!(!back.reward_ignores_context);
+        assert_eq!(
+            serde_json::to_value(&on).unwrap()["reward_ignores_context"],
+            serde_json::json!(true)
+        );
     }
 
     #[test]

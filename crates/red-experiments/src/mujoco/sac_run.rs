@@ -190,7 +190,7 @@ pub(super) fn run(
         let reward = match &demos {
             Some(d) => {
                 let (es, ea) = reward_pairs(&cfg, d, &act_box)?;
-                let r = fit_run_reward(&cfg, &es, &ea)?;
+                let r = fit_run_reward(&cfg, &es, &ea, &d.context_dims())?;
                 if let Some(msg) = r
                     .as_ref()
                     .map(|r| fitted_reward_note(&cfg, r, d, &act_box))
