@@ -232,7 +232,8 @@ impl Demos {
     /// fewer than two trajectories or a trajectory of fewer than two steps
     /// (nothing then tells a context from a single value).
     pub fn context_dims(&self) -> Vec<usize> {
-        if self.trajectories.len() < 2 || self.trajectories.iter().any(|t| t.len() < 2) {
+        let steps = |t: &Trajectory| t.observations.len().min(t.actions.len());
+        if self.trajectories.len() < 2 || self.trajectories.iter().any(|t| steps(t) < 2) {
             return Vec::new();
         }
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * (1.0 + a.abs().max(b.abs()));
@@ -244,11 +245,10 @@ impl Demos {
                     .iter()
                     .map(|t| value(&t.observations[0]))
                     .collect();
-                let constant = self
-                    .trajectories
-                    .iter()
-                    .zip(&firsts)
-                    .all(|(t, &v0)| t.observations.iter().all(|o| close(value(o), v0)));
+                let constant = self.trajectories.iter().zip(&firsts).all(|(t, &v0)| {
+                    let mut rows = t.observations.iter().take(steps(t));
+                    rows.all(|o| close(value(o), v0))
+                });
                 constant && firsts.iter().any(|&v| !close(v, firsts[0]))
             })
             .collect()
@@ -704,8 +704,13 @@ mod tests {
         d.trajectories
             .push(traj(&[[1.0, 0.2, 7.0], [1.5, 0.2 + 1e-12, 7.0]]));
         assert_eq!(d.context_dims(), vec![1]);
-        // a one-step trajectory tells nothing
+        // a one-step trajectory tells nothing, nor one without states
         d.trajectories.push(traj(&[[1.0, 0.5, 7.0]]));
+        assert!(d.context_dims().is_empty());
+        d.trajectories.pop();
+        let mut bare = traj(&[[1.0, 0.5, 7.0], [1.0, 0.5, 7.0]]);
+        bare.observations.clear();
+        d.trajectories.push(bare);
         assert!(d.context_dims().is_empty());
     }
 }

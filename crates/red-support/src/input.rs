@@ -137,6 +137,15 @@ impl InputMap {
         actions: ArrayView2<'_, f64>,
     ) -> Result<Array2<f64>> {
         check_pairs(states, actions, self.obs_dim, self.act_dim)?;
+        if let Some(&d) = self.ignored.iter().find(|&&d| d >= self.obs_dim) {
+            return Err(Error::InvalidConfig {
+                field: "ignored".into(),
+                reason: format!(
+                    "state dimension {d} does not exist: states have {} dimensions",
+                    self.obs_dim
+                ),
+            });
+        }
         let mut x = concat(states, actions);
         for mut row in x.rows_mut() {
             for (j, v) in row.iter_mut().enumerate() {
@@ -276,6 +285,10 @@ mod tests {
             .apply(array![[100.0, 5.0, -70.0]].view(), array![[0.5]].view())
             .unwrap();
         assert_eq!(far.row(0), x.row(0));
+        // a saved map naming an action column is refused when used
+        let mut bad = some.clone();
+        bad.ignored = vec![3];
+        assert!(bad.apply(s.view(), a.view()).is_err());
         let e = map.ignoring(&[3]).unwrap_err();
         assert!(e.to_string().contains("ignored_state_dims"), "{e}");
         // a map saved without the field reads back with none ignored

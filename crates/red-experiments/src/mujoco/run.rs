@@ -513,6 +513,16 @@ impl RunConfig {
                 },
             )
         };
+        if self.reward_ignores_context && self.method != Method::Red {
+            field(
+                "reward_ignores_context",
+                Err(format!(
+                    "leaves the context out of RED's RND only; method `{}` does not use it \
+                     (remove the field)",
+                    self.method.name()
+                )),
+            )?;
+        }
         if self.method != Method::Bc {
             positive("steps", self.steps)?;
         } else {
@@ -2198,6 +2208,16 @@ mod tests {
         assert_eq!(r(&fitted, &es), r(&manual, &es));
         assert_eq!(r(&fitted, &es), r(&fitted, &moved));
         assert_ne!(r(&plain, &es), r(&plain, &moved));
+        // only RED's reward has it
+        let mut ae = RunConfig::for_task(EnvId::Reacher, Method::Ae);
+        ae.reward_ignores_context = true;
+        let e = ae.validate().unwrap_err().to_string();
+        assert!(e.contains("reward_ignores_context"), "{e}");
+        let fine = on.validate().map_err(|e| e.to_string());
+        assert!(
+            !format!("{fine:?}").contains("reward_ignores_context"),
+            "{fine:?}"
+        );
         // false is not written, and a config without the field reads false
         let v = serde_json::to_value(&cfg).unwrap();
         assert!(v.get("reward_ignores_context").is_none());
