@@ -256,8 +256,12 @@ pub struct RunConfig {
     /// as 0 in the RND's input (added to `rnd.ignored_state_dims`). A few
     /// trajectories show a few values of a context, so every new episode's
     /// context is off their support whatever the agent does. Default:
-    /// false (under measurement). A `config.json` without the field reads
-    /// as false; false is not written, so older checkpoints resume.
+    /// false. Measured (session 50, docs/results/mujoco.md): on the SAC
+    /// Reacher expert's mean-action and sampled demos, 2M steps, seeds 0-2,
+    /// -7.97, -8.93, -9.95 and -9.04, -9.83, -12.17 against the default's
+    /// -7.79, -9.33, -8.99 and -10.56, -9.91, -11.06: not a change. A
+    /// `config.json` without the field reads as false; false is not
+    /// written, so older checkpoints resume.
     #[serde(default, skip_serializing_if = "is_false")]
     pub reward_ignores_context: bool,
     /// Epochs of the `bc` method. Default 100 (our choice: the release does
