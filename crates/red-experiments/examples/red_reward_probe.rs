@@ -128,10 +128,10 @@ fn probe(
     );
     // The settings a run fits with: the epochs for this many pairs
     // (`epochs_reference_pairs`) and the context left out if set.
-    let scaled = cfg.reward_fit_config(s.nrows(), &demos.context_dims());
+    let context = demos.context_dims();
+    let scaled = cfg.reward_fit_config(s.nrows(), &context);
     println!(
-        "context dimensions {:?}; left out of the reward: {:?}",
-        demos.context_dims(),
+        "context dimensions {context:?}; left out of the reward: {:?}",
         scaled.rnd.ignored_state_dims
     );
     let settings = scaled.reward_settings();

@@ -105,15 +105,7 @@ impl InputMap {
     /// # Errors
     /// [`Error::InvalidConfig`] for a dimension at or beyond `obs_dim`.
     pub fn ignoring(mut self, dims: &[usize]) -> Result<Self> {
-        if let Some(&d) = dims.iter().find(|&&d| d >= self.obs_dim) {
-            return Err(Error::InvalidConfig {
-                field: "ignored_state_dims".into(),
-                reason: format!(
-                    "state dimension {d} does not exist: states have {} dimensions (0..{})",
-                    self.obs_dim, self.obs_dim
-                ),
-            });
-        }
+        check_state_dims(dims, self.obs_dim, "ignored_state_dims")?;
         let mut dims = dims.to_vec();
         dims.sort_unstable();
         dims.dedup();
@@ -137,15 +129,7 @@ impl InputMap {
         actions: ArrayView2<'_, f64>,
     ) -> Result<Array2<f64>> {
         check_pairs(states, actions, self.obs_dim, self.act_dim)?;
-        if let Some(&d) = self.ignored.iter().find(|&&d| d >= self.obs_dim) {
-            return Err(Error::InvalidConfig {
-                field: "ignored".into(),
-                reason: format!(
-                    "state dimension {d} does not exist: states have {} dimensions",
-                    self.obs_dim
-                ),
-            });
-        }
+        check_state_dims(&self.ignored, self.obs_dim, "ignored")?;
         let mut x = concat(states, actions);
         for mut row in x.rows_mut() {
             for (j, v) in row.iter_mut().enumerate() {
@@ -212,6 +196,20 @@ pub fn check_pairs(
         });
     }
     Ok(())
+}
+
+/// Refuses a state dimension at or beyond `obs_dim` in `dims`, naming
+/// `field`.
+fn check_state_dims(dims: &[usize], obs_dim: usize, field: &str) -> Result<()> {
+    match dims.iter().find(|&&d| d >= obs_dim) {
+        Some(&d) => Err(Error::InvalidConfig {
+            field: field.into(),
+            reason: format!(
+                "state dimension {d} does not exist: states have {obs_dim} dimensions (0..{obs_dim})"
+            ),
+        }),
+        None => Ok(()),
+    }
 }
 
 fn concat(states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Array2<f64> {

@@ -1030,8 +1030,13 @@ pub(super) fn fitted_reward_note(
     } else {
         String::new()
     };
-    let context = demos.context_dims();
-    if cfg.reward_ignores_context && !context.is_empty() && cfg.method == Method::Red {
+    // (`validate` refuses the flag for methods other than RED)
+    let context = if cfg.reward_ignores_context {
+        demos.context_dims()
+    } else {
+        Vec::new()
+    };
+    if !context.is_empty() {
         scaled += &format!(
             " (state dimensions {context:?} are each trajectory's constant context: left out)"
         );
