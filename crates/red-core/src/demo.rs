@@ -254,6 +254,46 @@ impl Demos {
             .collect()
     }
 
+    /// The set as an environment with a time feature sees it: every
+    /// observation gets one more number, its step in the trajectory over
+    /// `max_steps` (0 for the first, as at a reset). Assumes each trajectory
+    /// starts at a reset.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] if `max_steps` is 0 or a trajectory has more
+    /// than `max_steps` steps (it cannot come from that time limit).
+    pub fn with_time_feature(mut self, max_steps: usize) -> Result<Self> {
+        if max_steps == 0 {
+            return Err(Error::InvalidConfig {
+                field: "max_steps".into(),
+                reason: "must be at least 1".into(),
+            });
+        }
+        if let Some((i, t)) = self
+            .trajectories
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.len() > max_steps)
+        {
+            return Err(Error::InvalidConfig {
+                field: "time_feature".into(),
+                reason: format!(
+                    "trajectory {i} has {} steps, more than the time limit of {max_steps}",
+                    t.len()
+                ),
+            });
+        }
+        for t in &mut self.trajectories {
+            for (k, o) in t.observations.iter_mut().enumerate() {
+                o.truncate(self.obs_dim);
+                o.resize(self.obs_dim, 0.0);
+                o.push(k as f64 / max_steps as f64);
+            }
+        }
+        self.obs_dim += 1;
+        Ok(self)
+    }
+
     /// The length of each trajectory.
     pub fn lengths(&self) -> Vec<usize> {
         self.trajectories.iter().map(Trajectory::len).collect()
@@ -712,5 +752,27 @@ mod tests {
         bare.observations.clear();
         d.trajectories.push(bare);
         assert!(d.context_dims().is_empty());
+    }
+
+    #[test]
+    fn the_time_feature_counts_steps_from_each_trajectory_start() {
+        let mut d = Demos::new("x", 3, 1, None);
+        d.trajectories
+            .push(traj(&[[0.5, 1.0, 0.0], [0.6, 1.0, 0.0], [0.7, 1.0, 0.0]]));
+        d.trajectories
+            .push(traj(&[[-0.5, 2.0, 0.0], [-0.4, 2.0, 0.0]]));
+        let t = d.clone().with_time_feature(4).unwrap();
+        assert_eq!(t.obs_dim, 4);
+        assert_eq!(t.trajectories[0].observations[2], vec![0.7, 1.0, 0.0, 0.5]);
+        assert_eq!(t.trajectories[1].observations[0], vec![-0.5, 2.0, 0.0, 0.0]);
+        assert_eq!(
+            t.trajectories[1].observations[1],
+            vec![-0.4, 2.0, 0.0, 0.25]
+        );
+        assert_eq!(t.pairs().0.ncols(), 4);
+        // a trajectory longer than the limit cannot be from it
+        let e = d.clone().with_time_feature(2).unwrap_err().to_string();
+        assert!(e.contains("trajectory 0 has 3 steps"), "{e}");
+        assert!(d.with_time_feature(0).is_err());
     }
 }

@@ -22,7 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use red_core::{Env, RewardModel, Seeder, Space, Stream};
 use red_experiments::imitation::{Method, fit_reward};
-use red_experiments::mujoco::run::{RunConfig, load_demos};
+use red_experiments::mujoco::run::{RunConfig, load_run_demos, run_env};
 use red_mujoco::EnvId;
 
 type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
@@ -69,9 +69,13 @@ fn probe(
 ) -> AnyResult<()> {
     let raw = red_core::Demos::read(file.as_ref())?;
     let env_id: EnvId = raw.env_id.parse()?;
-    let demos = load_demos(file.as_ref(), env_id)?;
+    let mut cfg = RunConfig::for_task(env_id, Method::Red);
+    if let Some(path) = config {
+        cfg = cfg.with_overrides(&std::fs::read_to_string(path)?, path.as_ref())?;
+    }
+    let demos = load_run_demos(file.as_ref(), &cfg)?;
     let (s, a) = demos.pairs();
-    let mut env = env_id.make()?;
+    let mut env = run_env(&cfg)?;
     let (low, high) = match env.action_space() {
         Space::Box(b) => (b.low.clone(), b.high.clone()),
         Space::Discrete(_) => return Err("a discrete action space".into()),
@@ -112,10 +116,6 @@ fn probe(
         .collect();
     println!("per-dimension action std: {stds:.3?}; max |a|: {maxabs:.2?}");
 
-    let mut cfg = RunConfig::for_task(env_id, Method::Red);
-    if let Some(path) = config {
-        cfg = cfg.with_overrides(&std::fs::read_to_string(path)?, path.as_ref())?;
-    }
     if stored {
         cfg.reward_clips_actions = false;
     }
@@ -188,7 +188,7 @@ fn probe(
     }
     score("demo states, zero actions", s.view(), zeros.view())?;
     for f in extra {
-        let (xs, xa) = load_demos(f.as_ref(), env_id)?.pairs();
+        let (xs, xa) = load_run_demos(f.as_ref(), &cfg)?.pairs();
         score(&format!("pairs of {f}"), xs.view(), xa.view())?;
     }
     let (ss, sa) = rollouts(&mut env, 5, seed, |_, _| vec![0.0; low.len()])?;

@@ -264,6 +264,18 @@ pub struct RunConfig {
     /// written, so older checkpoints resume.
     #[serde(default, skip_serializing_if = "is_false")]
     pub reward_ignores_context: bool,
+    /// Whether every observation ends with the time feature: the episode's
+    /// steps over the task's time limit, 0 at the reset
+    /// ([`WatchedEnv::with_time_feature`]; the demonstrations get the same
+    /// column from their step in the trajectory, [`Demos::with_time_feature`]).
+    /// The policy, the value function and RED's reward all see it. Our
+    /// addition (the paper's states have no time): for a task whose
+    /// episodes always run to the limit, such as Reacher, it lets the
+    /// reward tell reaching the target early from late. Default: false. A
+    /// `config.json` without the field reads as false; false is not
+    /// written, so older checkpoints resume.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub time_feature: bool,
     /// Epochs of the `bc` method. Default 100 (our choice: the release does
     /// not report BC alone on MuJoCo; 100 epochs over 4000 pairs is about
     /// 3,100 Adam steps, where the training loss has flattened).
@@ -463,6 +475,7 @@ impl RunConfig {
                 0
             },
             reward_ignores_context: false,
+            time_feature: false,
             bc_epochs: 100,
             freeze_obs_norm_from_demo: matches!(method, Method::Red | Method::Ae | Method::Bc),
             checkpoint_every: 50,
@@ -839,6 +852,56 @@ pub fn load_demos(path: &Path, env: EnvId) -> Result<Demos> {
         return Err(bad("has fewer than 2 state-action pairs".into()));
     }
     Ok(demos)
+}
+
+/// The run's task as its policy sees it: with the time feature when
+/// [`RunConfig::time_feature`] is set.
+///
+/// # Errors
+/// The model cannot be loaded.
+pub fn run_env(cfg: &RunConfig) -> Result<WatchedEnv> {
+    WatchedEnv::with_time_feature(cfg.env, cfg.time_feature)
+        .with_context(|| format!("cannot build {}", cfg.env))
+}
+
+/// Reads the demonstration file as [`load_demos`] and gives its states the
+/// time feature when [`RunConfig::time_feature`] is set.
+///
+/// # Errors
+/// As [`load_demos`], or a trajectory longer than the task's time limit.
+pub fn load_run_demos(path: &Path, cfg: &RunConfig) -> Result<Demos> {
+    let demos = load_demos(path, cfg.env)?;
+    if !cfg.time_feature {
+        return Ok(demos);
+    }
+    demos
+        .with_time_feature(cfg.env.max_episode_steps())
+        .map_err(|e| Error::Input {
+            path: path.to_path_buf(),
+            reason: format!("cannot add the time feature (`time_feature`): {e}"),
+        })
+}
+
+/// The task as `policy` was trained on it: with the time feature
+/// ([`RunConfig::time_feature`]) when the policy reads one number more than
+/// the task's observations.
+///
+/// # Errors
+/// The model cannot be loaded, or the policy's input fits neither.
+pub fn policy_env(id: EnvId, policy: &GaussianPolicy) -> Result<WatchedEnv> {
+    let plain = WatchedEnv::new(id).with_context(|| format!("cannot build {id}"))?;
+    let od = plain.observation_space().dim();
+    match policy.obs_dim() {
+        d if d == od => Ok(plain),
+        d if d == od + 1 => Ok(WatchedEnv::with_time_feature(id, true)?),
+        d => Err(Error::InvalidConfig {
+            field: "policy".into(),
+            reason: format!(
+                "the policy reads {d} numbers; {id} has {od} (or {} with the time feature)",
+                od + 1
+            ),
+        }),
+    }
 }
 
 /// Reads a run folder's `config.json`.
@@ -1405,7 +1468,7 @@ pub(super) fn open_run(
     })?;
     cfg.validate()?;
     if let (true, Some(p)) = (cfg.method.needs_demo(), &cfg.demo) {
-        load_demos(p, cfg.env)?;
+        load_run_demos(p, &cfg)?;
     }
     let existing = crate::run_dir::Existing::from_force(start == Start::Force);
     let rd = RunDir::new_at(dir, existing)?;
@@ -1443,11 +1506,11 @@ pub(super) fn train(
         progress.note(n);
     }
     let session = Instant::now();
-    let mut env = WatchedEnv::new(cfg.env).with_context(|| format!("cannot build {}", cfg.env))?;
+    let mut env = run_env(&cfg)?;
     let (od, ad) = (env.observation_space().dim(), env.action_space().dim());
     let act_box = action_box(&env)?;
     let demos = match &cfg.demo {
-        Some(p) if cfg.method.needs_demo() => Some(load_demos(p, cfg.env)?),
+        Some(p) if cfg.method.needs_demo() => Some(load_run_demos(p, &cfg)?),
         _ => None,
     };
     if cfg.method == Method::Bc {
@@ -1574,7 +1637,7 @@ pub(super) fn finish_run(
     // Final policy and evaluations.
     save_policy(&rd.file("policy.json"), &policy)?;
     let eval_seed = Seeder::new(cfg.seed).derive(Stream::Eval);
-    let mut eval_env = WatchedEnv::new(cfg.env)?;
+    let mut eval_env = run_env(cfg)?;
     progress.advance(steps_done.min(cfg.steps), "evaluating");
     let final_report = evaluate(
         &mut eval_env,
@@ -1709,7 +1772,7 @@ fn run_bc(
     }
     rd.write("bc_losses.csv", csv.as_bytes())?;
     save_policy(&rd.file("policy.json"), &policy)?;
-    let mut env = WatchedEnv::new(cfg.env)?;
+    let mut env = run_env(cfg)?;
     let report = evaluate(
         &mut env,
         &policy,
@@ -1774,7 +1837,7 @@ pub fn record_demos_with(
     seed: u64,
     opts: &RecordOptions,
 ) -> Result<Demos> {
-    let mut env = WatchedEnv::new(id)?;
+    let mut env = policy_env(id, policy)?;
     let mut noise = opts
         .sampled
         .then(|| ChaCha8Rng::seed_from_u64(Seeder::new(seed).derive(Stream::Exploration)));
@@ -1790,12 +1853,10 @@ pub fn record_demos_with(
     };
     let sim = env.inner().inner().simulation();
     let hz = 1.0 / sim.dt();
-    let mut demos = Demos::new(
-        id.name(),
-        env.observation_space().dim(),
-        env.action_space().dim(),
-        Some(hz),
-    );
+    // A file holds the task's own observations: a policy trained with the
+    // time feature reads it, the file does not keep it.
+    let od = env.observation_space().dim() - usize::from(env.has_time_feature());
+    let mut demos = Demos::new(id.name(), od, env.action_space().dim(), Some(hz));
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for _ in 0..n {
         let s: u64 = rand::RngExt::random(&mut rng);
@@ -1815,6 +1876,9 @@ pub fn record_demos_with(
             record_episode(&mut env, obs, opts.max_steps, act, |_, _| Ok(()))?;
         if opts.raw {
             trajectory.actions = raws;
+        }
+        for o in &mut trajectory.observations {
+            o.truncate(od);
         }
         demos.trajectories.push(trajectory);
     }
@@ -1953,7 +2017,7 @@ pub fn evaluate_file(
     }
     let policy =
         GaussianPolicy::load(path).with_context(|| format!("loading {}", path.display()))?;
-    let mut env = WatchedEnv::new(id)?;
+    let mut env = policy_env(id, &policy)?;
     let run = if sampled { evaluate_sampled } else { evaluate };
     let report = run(
         &mut env,
@@ -2174,6 +2238,59 @@ mod tests {
         );
         assert_eq!(ra, rb);
         assert_ne!(ra, rc);
+    }
+
+    #[test]
+    fn the_time_feature_reaches_the_env_the_demos_and_saved_policies() {
+        let mut cfg = RunConfig::for_task(EnvId::Reacher, Method::Red);
+        let od = run_env(&cfg).unwrap().observation_space().dim();
+        cfg.time_feature = true;
+        let env = run_env(&cfg).unwrap();
+        assert_eq!(env.observation_space().dim(), od + 1);
+        // demos recorded by a plain policy read with the step's time
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let plain = GaussianPolicy::new(&cfg.trpo.policy, od, 2, None, &mut rng).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let file = tmp.path().join("d.json");
+        record_demos(EnvId::Reacher, &plain, 2, 3)
+            .unwrap()
+            .write(&file)
+            .unwrap();
+        let d = load_run_demos(&file, &cfg).unwrap();
+        assert_eq!(d.obs_dim, od + 1);
+        let t = &d.trajectories[1].observations;
+        assert_eq!((t[0][od], t[10][od]), (0.0, 10.0 / 50.0));
+        cfg.time_feature = false;
+        assert_eq!(load_run_demos(&file, &cfg).unwrap().obs_dim, od);
+        // a saved policy's input tells which task it was trained on
+        assert!(
+            !policy_env(EnvId::Reacher, &plain)
+                .unwrap()
+                .has_time_feature()
+        );
+        let timed = GaussianPolicy::new(&cfg.trpo.policy, od + 1, 2, None, &mut rng).unwrap();
+        assert!(
+            policy_env(EnvId::Reacher, &timed)
+                .unwrap()
+                .has_time_feature()
+        );
+        // and files it records hold the task's own observations
+        let demos = record_demos(EnvId::Reacher, &timed, 1, 3).unwrap();
+        assert_eq!(demos.obs_dim, od);
+        assert!(
+            demos.trajectories[0]
+                .observations
+                .iter()
+                .all(|o| o.len() == od)
+        );
+        let odd = GaussianPolicy::new(&cfg.trpo.policy, od + 2, 2, None, &mut rng).unwrap();
+        let e = policy_env(EnvId::Reacher, &odd).err().unwrap().to_string();
+        assert!(e.contains("with the time feature"), "{e}");
+        // false is not written, and a config without the field reads false
+        let v = serde_json::to_value(&cfg).unwrap();
+        assert!(v.get("time_feature").is_none());
+        let back: RunConfig = serde_json::from_value(v).unwrap();
+        assert!(!back.time_feature);
     }
 
     #[test]

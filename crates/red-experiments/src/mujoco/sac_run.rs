@@ -20,8 +20,8 @@ use std::time::Instant;
 use rand_chacha::ChaCha8Rng;
 use red_core::checkpoint::load_checkpoint_for;
 use red_core::{Env, Seeder, Stream};
+use red_mujoco::describe_warnings;
 use red_mujoco::watched::MJ_N_WARNING;
-use red_mujoco::{WatchedEnv, describe_warnings};
 use red_rl::episodic::EpisodicLearner;
 use red_rl::policy::GaussianPolicy;
 use red_rl::sac::Sac;
@@ -29,7 +29,7 @@ use serde::{Deserialize, Serialize};
 
 use super::run::{
     BestRecord, Outcome, RunConfig, Trained, action_box, checkpoint_settings, finish_run,
-    fit_run_reward, fitted_reward_note, load_demos, num, reward_pairs, save_policy,
+    fit_run_reward, fitted_reward_note, load_run_demos, num, reward_pairs, run_env, save_policy,
 };
 use crate::imitation::ImitationReward;
 use crate::{Error, Progress, Result, ResultExt, RunDir};
@@ -160,7 +160,7 @@ pub(super) fn run(
         progress.note(n);
     }
     let session = Instant::now();
-    let mut env = WatchedEnv::new(cfg.env).with_context(|| format!("cannot build {}", cfg.env))?;
+    let mut env = run_env(&cfg)?;
     let act_box = action_box(&env)?;
     if act_box.low.iter().any(|&l| l != -1.0) || act_box.high.iter().any(|&h| h != 1.0) {
         return Err(Error::InvalidConfig {
@@ -172,7 +172,7 @@ pub(super) fn run(
         });
     }
     let demos = match &cfg.demo {
-        Some(p) if cfg.method.needs_demo() => Some(load_demos(p, cfg.env)?),
+        Some(p) if cfg.method.needs_demo() => Some(load_run_demos(p, &cfg)?),
         _ => None,
     };
     let ckpt = rd.file("checkpoint.json");
