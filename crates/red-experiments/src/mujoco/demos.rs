@@ -132,13 +132,17 @@ pub fn make_demos(req: &DemoRequest) -> Result<Demos> {
     })?;
     let probe = WatchedEnv::new(req.env)?;
     let (od, ad) = (probe.observation_space().dim(), probe.action_space().dim());
-    if (policy.obs_dim(), policy.act_dim()) != (od, ad) {
+    // a policy trained with the time feature reads one number more
+    let fits = policy.obs_dim() == od || policy.obs_dim() == od + 1;
+    if !fits || policy.act_dim() != ad {
         return Err(bad(format!(
-            "is a policy for observations of {} and actions of {} numbers, but {} has {od} and \
-             {ad}: give a policy trained on {} (or the --env it was trained on)",
+            "is a policy for observations of {} and actions of {} numbers, but {} has {od} \
+             (or {} with the time feature) and {ad}: give a policy trained on {} (or the --env \
+             it was trained on)",
             policy.obs_dim(),
             policy.act_dim(),
             req.env.name(),
+            od + 1,
             req.env.name()
         )));
     }

@@ -53,6 +53,22 @@ use crate::{Error, Progress, Result, ResultExt, RunDir};
 /// The kind written in this experiment's checkpoints.
 pub const CHECKPOINT_KIND: &str = "mujoco-train";
 
+/// The state dimensions RED's reward leaves out on Reacher by default
+/// (`rnd.ignored_state_dims`, since session 51): the joint angles' cosines
+/// and sines (0-3), the target (4, 5) and the joint velocities (6, 7). It
+/// reads the fingertip's offset from the target (8, 9), the time feature
+/// ([`RunConfig::time_feature`], on with it) and the action. Four
+/// demonstrations show four targets and four arm poses; on a new target
+/// only the offset says whether the arm does what the demonstrator did, and
+/// the time says when (far early, on the target late). Measured (session
+/// 51, docs/results/mujoco.md): on the SAC Reacher expert's mean-action and
+/// sampled demos, 2M steps, seeds 0-2, -5.05, -5.23, -5.91 and -5.65,
+/// -4.65, -4.32 against -7.79, -9.33, -8.99 and -10.56, -9.91, -11.06 with
+/// every dimension and no time; the time feature alone -6.99, -6.39, -9.73
+/// and -6.87, -10.96, -9.19; these dimensions without the time -8.40,
+/// -8.93, -10.23 and -10.39, -10.20, -11.01 (session 50).
+pub const REACHER_RED_IGNORED_DIMS: [usize; 8] = [0, 1, 2, 3, 4, 5, 6, 7];
+
 /// Every setting of a run, written to `config.json`. Defaults per task and
 /// method come from [`RunConfig::for_task`]; they follow the RED release
 /// (`reference/original-red.md`).
@@ -271,9 +287,11 @@ pub struct RunConfig {
     /// The policy, the value function and RED's reward all see it. Our
     /// addition (the paper's states have no time): for a task whose
     /// episodes always run to the limit, such as Reacher, it lets the
-    /// reward tell reaching the target early from late. Default: false. A
-    /// `config.json` without the field reads as false; false is not
-    /// written, so older checkpoints resume.
+    /// reward tell reaching the target early from late. Default: true for
+    /// RED on Reacher (since session 51, with [`REACHER_RED_IGNORED_DIMS`];
+    /// the measurements are there), false otherwise. A `config.json`
+    /// without the field reads as false; false is not written, so older
+    /// checkpoints resume.
     #[serde(default, skip_serializing_if = "is_false")]
     pub time_feature: bool,
     /// Epochs of the `bc` method. Default 100 (our choice: the release does
@@ -413,6 +431,11 @@ impl RunConfig {
             epochs: if env == EnvId::Reacher { 300 } else { 200 },
             standardize: true,
             target_bias: if env == EnvId::HalfCheetah { 1.0 } else { 0.0 },
+            ignored_state_dims: if (method, env) == (Method::Red, EnvId::Reacher) {
+                REACHER_RED_IGNORED_DIMS.to_vec()
+            } else {
+                Vec::new()
+            },
             ..RndConfig::default()
         };
         let autoencoder = AutoencoderConfig {
@@ -475,7 +498,7 @@ impl RunConfig {
                 0
             },
             reward_ignores_context: false,
-            time_feature: false,
+            time_feature: (method, env) == (Method::Red, EnvId::Reacher),
             bc_epochs: 100,
             freeze_obs_norm_from_demo: matches!(method, Method::Red | Method::Ae | Method::Bc),
             checkpoint_every: 50,
@@ -2099,8 +2122,17 @@ mod tests {
         let cfg = RunConfig::for_task(env, Method::Red)
             .with_overrides(&text, path)
             .unwrap();
-        // Every file restores runs made before session 49, which fitted
-        // and warm-started with unscaled epochs.
+        // Every file restores runs made before session 51, whose RED on
+        // Reacher saw every state dimension and no time.
+        if env == EnvId::Reacher {
+            assert!(!cfg.time_feature, "{}", path.display());
+            assert!(cfg.rnd.ignored_state_dims.is_empty(), "{}", path.display());
+        }
+        if name == "mujoco-red-reacher-no-time-feature" {
+            return;
+        }
+        // The others restore runs made before session 49, which fitted and
+        // warm-started with unscaled epochs.
         assert_eq!(cfg.epochs_reference_pairs, 0, "{}", path.display());
         if name == "mujoco-red-epochs-unscaled" {
             return;
@@ -2242,7 +2274,15 @@ mod tests {
 
     #[test]
     fn the_time_feature_reaches_the_env_the_demos_and_saved_policies() {
+        // RED on Reacher has it by default, the other methods and tasks not
         let mut cfg = RunConfig::for_task(EnvId::Reacher, Method::Red);
+        assert!(cfg.time_feature);
+        assert_eq!(cfg.rnd.ignored_state_dims, REACHER_RED_IGNORED_DIMS);
+        for (env, m) in [(EnvId::Reacher, Method::Gail), (EnvId::Hopper, Method::Red)] {
+            let other = RunConfig::for_task(env, m);
+            assert!(!other.time_feature && other.rnd.ignored_state_dims.is_empty());
+        }
+        cfg.time_feature = false;
         let od = run_env(&cfg).unwrap().observation_space().dim();
         cfg.time_feature = true;
         let env = run_env(&cfg).unwrap();
@@ -2306,6 +2346,8 @@ mod tests {
         });
         let ea = Array2::from_shape_fn((40, 2), |_| rng.random_range(-1.0..1.0));
         let mut cfg = RunConfig::for_task(EnvId::Reacher, Method::Red);
+        // every dimension in, as before session 51
+        cfg.rnd.ignored_state_dims.clear();
         cfg.rnd.epochs = 2;
         assert!(!cfg.reward_ignores_context);
         assert!(
