@@ -15,7 +15,10 @@
 //! FILE` overlays a run's config file on the task's defaults (as
 //! `red-cli mujoco train --config` does); `--pairs FILE` also scores the
 //! pairs of another demonstration file of the task (e.g. a learner's
-//! episodes written by `red-cli mujoco demos --policy`).
+//! episodes written by `red-cli mujoco demos --policy`). Where the config
+//! has the time feature (`RunConfig::time_feature`, RED on Reacher since
+//! session 51), the demo files and the still and random episodes get it
+//! too, as in the run.
 use ndarray::{Array1, Array2, ArrayView2};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -1,5 +1,6 @@
 //! [`WatchedEnv`]: a task inside its time limit that counts MuJoCo's own
-//! warnings, so a run can report them instead of letting them pass.
+//! warnings, so a run can report them instead of letting them pass, and
+//! can end each observation with the time ([`WatchedEnv::with_time_feature`]).
 
 use red_core::{Env, Info, Space, Step, TimeLimit};
 
@@ -91,7 +92,7 @@ impl WatchedEnv {
         }
     }
 
-    /// The watched environment.
+    /// The watched environment (its observations never hold the time).
     pub fn inner(&self) -> &TimeLimit<BoxedEnv> {
         &self.env
     }

@@ -95,6 +95,13 @@ pub struct SacConfig {
     /// no such steps and no random numbers drawn for them.
     #[serde(default)]
     pub random_steps: u64,
+    /// Whether a step cut by the time limit ends the return like a terminal
+    /// one (no bootstrap from its next state). Right when the state holds
+    /// the time (a time feature: nothing follows the limit; Pardo et al.
+    /// 2018); without it the cut is outside the task and the value goes on.
+    /// Default false; false is not written, so older checkpoints resume.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub end_at_truncation: bool,
 }
 
 impl Default for SacConfig {
@@ -117,6 +124,7 @@ impl Default for SacConfig {
             reward_scale: 1.0,
             max_grad_norm: None,
             random_steps: 0,
+            end_at_truncation: false,
         }
     }
 }
@@ -685,7 +693,8 @@ impl Sac {
                     });
                 }
             };
-            self.push(&obs, &a, r, &step.observation, step.terminated)?;
+            let ends = step.terminated || (self.config.end_at_truncation && step.truncated);
+            self.push(&obs, &a, r, &step.observation, ends)?;
             log.record(&obs, &a, step.reward, r);
             self.env_steps += 1;
             if self.env_steps > self.config.learning_starts {

@@ -315,3 +315,38 @@ fn environment_reward_is_what_is_stored_and_random_steps_act_uniformly() {
         assert!((b.rewards[i] + distance(&next)).abs() < 1e-12);
     }
 }
+
+#[test]
+fn a_time_limit_cut_ends_the_return_only_when_asked() {
+    // `Reach` never terminates and is cut at HORIZON: by default no stored
+    // transition is terminal; with `end_at_truncation` each episode's last is.
+    for end in [false, true] {
+        let (sac, _) = learner(4);
+        let cfg = SacConfig {
+            end_at_truncation: end,
+            learning_starts: 1_000,
+            ..sac.config().clone()
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let pc = GaussianPolicyConfig {
+            hidden: vec![8],
+            squash: true,
+            ..GaussianPolicyConfig::default()
+        };
+        let policy = GaussianPolicy::new(&pc, 2, 2, None, &mut rng).unwrap();
+        let mut sac = Sac::new(&cfg, policy, &mut rng).unwrap();
+        train_on_env_reward(&mut sac, &mut rng, 3 * HORIZON as u64);
+        let b = sac.sample(4_000, &mut rng).unwrap();
+        let ends = b.terminated.iter().filter(|&&t| t).count();
+        if end {
+            // about one draw in HORIZON lands on an episode's last step
+            let share = ends as f64 / 4_000.0;
+            assert!(
+                (share - 1.0 / HORIZON as f64).abs() < 0.5 / HORIZON as f64,
+                "{share}"
+            );
+        } else {
+            assert_eq!(ends, 0);
+        }
+    }
+}

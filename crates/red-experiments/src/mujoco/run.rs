@@ -158,7 +158,11 @@ pub struct RunConfig {
     ///   1408.1 -> 1537.4, 1422.7, 1487.0. U(-3, 3) did more on the SAC
     ///   demos (mean 3927) but wrecked the single trajectory (-209 to 62;
     ///   its σ1, calibrated on held-out scores, fell from 324 to 57).
-    ///   docs/results/mujoco.md, session 30.
+    ///   docs/results/mujoco.md, session 30;
+    /// - RED on Reacher leaves out every state dimension but the fingertip's
+    ///   offset from the target (`ignored_state_dims`,
+    ///   [`REACHER_RED_IGNORED_DIMS`], since session 51, with the time
+    ///   feature).
     pub rnd: RndConfig,
     /// The AE baseline's autoencoder. Default: the release's hidden width
     /// (30 Hopper, Walker2d, HalfCheetah; 100 Reacher; 128 Ant).
@@ -563,6 +567,19 @@ impl RunConfig {
                 )),
             )?;
         }
+        if self.time_feature
+            && self.learner == MujocoLearner::Trpo
+            && self.trpo.gae.bootstrap_on_truncation
+        {
+            field(
+                "time_feature",
+                Err(
+                    "with the time in the state nothing follows the time limit, but \
+                     trpo.gae.bootstrap_on_truncation carries the value past it: set it to false"
+                        .into(),
+                ),
+            )?;
+        }
         if self.method != Method::Bc {
             positive("steps", self.steps)?;
         } else {
@@ -671,16 +688,27 @@ impl RunConfig {
     }
 
     /// These settings overwritten by the fields of the JSON object `json`
-    /// (a `config.json` or part of one, read from `source`; nested objects
-    /// are merged field by field, so missing fields keep their values;
-    /// unknown fields are refused).
+    /// (part of a `config.json`, read from `source`; nested objects are
+    /// merged field by field, so missing fields keep their values; unknown
+    /// fields are refused). A whole run's `config.json` (one that names
+    /// `env` and `method`) is read as that run's settings, as a resume reads
+    /// it: a field it does not write (false, 0 or empty) is that value, not
+    /// these settings' (a Reacher RED run of before session 51 keeps its
+    /// plain observations).
     ///
     /// # Errors
     /// [`Error::Input`] naming `source` for text that is not JSON, an unknown
     /// field, or another task or method than these settings'.
     pub fn with_overrides(self, json: &str, source: &Path) -> Result<Self> {
         let (env, method) = (self.env, self.method);
-        let cfg = crate::run_dir::overlay_json(&self, json, source)?;
+        let whole = serde_json::from_str::<serde_json::Value>(json.trim_start_matches('\u{feff}'))
+            .ok()
+            .is_some_and(|v| v.get("env").is_some() && v.get("method").is_some());
+        let cfg = if whole {
+            crate::run_dir::parse_json::<RunConfig>(json, source)?
+        } else {
+            crate::run_dir::overlay_json(&self, json, source)?
+        };
         if cfg.env != env || cfg.method != method {
             return Err(Error::Input {
                 path: source.to_path_buf(),
@@ -901,7 +929,12 @@ pub fn load_run_demos(path: &Path, cfg: &RunConfig) -> Result<Demos> {
         .with_time_feature(cfg.env.max_episode_steps())
         .map_err(|e| Error::Input {
             path: path.to_path_buf(),
-            reason: format!("cannot add the time feature (`time_feature`): {e}"),
+            reason: format!(
+                "does not fit the time feature ({e}): give demonstrations recorded under {}'s \
+                 time limit of {} steps, or set `time_feature` to false",
+                cfg.env,
+                cfg.env.max_episode_steps()
+            ),
         })
 }
 
@@ -2040,7 +2073,8 @@ pub fn evaluate_file(
     }
     let policy =
         GaussianPolicy::load(path).with_context(|| format!("loading {}", path.display()))?;
-    let mut env = policy_env(id, &policy)?;
+    let mut env =
+        policy_env(id, &policy).with_context(|| format!("evaluating {}", path.display()))?;
     let run = if sampled { evaluate_sampled } else { evaluate };
     let report = run(
         &mut env,
@@ -2326,6 +2360,23 @@ mod tests {
         let odd = GaussianPolicy::new(&cfg.trpo.policy, od + 2, 2, None, &mut rng).unwrap();
         let e = policy_env(EnvId::Reacher, &odd).err().unwrap().to_string();
         assert!(e.contains("with the time feature"), "{e}");
+        // a whole config.json of a run without the feature keeps it off
+        let old = serde_json::to_string(&cfg).unwrap();
+        let reread = RunConfig::for_task(EnvId::Reacher, Method::Red)
+            .with_overrides(&old, Path::new("config.json"))
+            .unwrap();
+        assert!(!reread.time_feature);
+        assert_eq!(reread, cfg);
+        // TRPO may not carry the value past a limit the state shows
+        let mut hop = RunConfig::for_task(EnvId::Hopper, Method::Red);
+        hop.time_feature = true;
+        let e = hop.validate().unwrap_err().to_string();
+        assert!(e.contains("bootstrap_on_truncation"), "{e}");
+        hop.trpo.gae.bootstrap_on_truncation = false;
+        assert!(
+            !hop.validate()
+                .is_err_and(|e| e.to_string().contains("time_feature"))
+        );
         // false is not written, and a config without the field reads false
         let v = serde_json::to_value(&cfg).unwrap();
         assert!(v.get("time_feature").is_none());

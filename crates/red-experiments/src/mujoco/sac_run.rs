@@ -86,7 +86,7 @@ impl SacState {
             ..cfg.sac.policy.clone()
         };
         let policy = GaussianPolicy::new(&pc, obs_dim, act_dim, None, &mut init)?;
-        let sac = Sac::new(&cfg.sac.learner, policy, &mut init)?;
+        let sac = Sac::new(&sac_learner(cfg), policy, &mut init)?;
         Ok(Self {
             sac,
             rng: seeder.rng(Stream::Exploration),
@@ -105,7 +105,7 @@ impl SacState {
 
     /// Values that make no sense even in a whole file.
     fn check(&self, cfg: &RunConfig) -> std::result::Result<(), String> {
-        if self.sac.config() != &cfg.sac.learner {
+        if self.sac.config() != &sac_learner(cfg) {
             return Err(
                 "the SAC learner was made with other settings than config.json's sac".into(),
             );
@@ -317,4 +317,14 @@ pub(super) fn run(
         wall_before,
     };
     finish_run(&rd, &cfg, demos.as_ref(), &act_box, done, session, progress)
+}
+
+/// SAC's settings for the run: `sac.learner`, with a time-limit cut ending
+/// the return when the observations hold the time
+/// ([`RunConfig::time_feature`]).
+fn sac_learner(cfg: &RunConfig) -> red_rl::sac::SacConfig {
+    red_rl::sac::SacConfig {
+        end_at_truncation: cfg.time_feature,
+        ..cfg.sac.learner.clone()
+    }
 }
