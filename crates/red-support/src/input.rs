@@ -29,6 +29,36 @@ pub struct InputMap {
     /// every row (our addition; empty, the release's, keeps every input).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ignored: Vec<usize>,
+    /// State dimensions read by their phase (our addition; empty, the
+    /// release's, reads none so): each reads as 0 in its own place and
+    /// adds two inputs after the action, see [`PeriodicDim`].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub periodic: Vec<PeriodicDim>,
+}
+
+/// A state dimension that the estimator reads by its phase alone: the raw
+/// value `v` (before any standardisation) becomes the two inputs
+/// `r cos(2 pi v / period)` and `r sin(2 pi v / period)` with
+/// `r = period / (2 pi)`, so values a whole period apart read the same,
+/// and near any value a small change moves the input by as much as it
+/// moved `v` itself. The driving road's lateral position read with the
+/// lane width as its period is the place within a lane, whichever lane.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PeriodicDim {
+    /// The state dimension.
+    pub dim: usize,
+    /// Its period, in the state's own units (finite, above 0).
+    pub period: f64,
+}
+
+impl PeriodicDim {
+    /// The two inputs of the raw value `v`.
+    pub fn features(&self, v: f64) -> [f64; 2] {
+        let r = self.period / std::f64::consts::TAU;
+        let phase = v / r;
+        [r * phase.cos(), r * phase.sin()]
+    }
 }
 
 impl InputMap {
@@ -96,6 +126,7 @@ impl InputMap {
             mean,
             scale,
             ignored: Vec::new(),
+            periodic: Vec::new(),
         })
     }
 
@@ -113,9 +144,22 @@ impl InputMap {
         Ok(self)
     }
 
-    /// Length of an input row, `obs_dim + act_dim`.
+    /// The same map with the state dimensions of `dims` read by their
+    /// phase ([`PeriodicDim`]), in the order given.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for a dimension at or beyond `obs_dim`, one
+    /// given twice, or a period that is not finite and above 0.
+    pub fn with_periodic(mut self, dims: &[PeriodicDim]) -> Result<Self> {
+        check_periodic(dims, self.obs_dim)?;
+        self.periodic = dims.to_vec();
+        Ok(self)
+    }
+
+    /// Length of an input row: `obs_dim + act_dim`, and two more for each
+    /// periodic dimension.
     pub fn dim(&self) -> usize {
-        self.obs_dim + self.act_dim
+        self.obs_dim + self.act_dim + 2 * self.periodic.len()
     }
 
     /// The input rows of a batch: `(n, obs_dim)` and `(n, act_dim)` in,
@@ -130,6 +174,7 @@ impl InputMap {
     ) -> Result<Array2<f64>> {
         check_pairs(states, actions, self.obs_dim, self.act_dim)?;
         check_state_dims(&self.ignored, self.obs_dim, "ignored")?;
+        check_periodic(&self.periodic, self.obs_dim)?;
         let mut x = concat(states, actions);
         for mut row in x.rows_mut() {
             for (j, v) in row.iter_mut().enumerate() {
@@ -139,14 +184,30 @@ impl InputMap {
                 row[j] = 0.0;
             }
         }
-        Ok(x)
+        if self.periodic.is_empty() {
+            return Ok(x);
+        }
+        let base = self.obs_dim + self.act_dim;
+        let mut wide = Array2::zeros((x.nrows(), self.dim()));
+        wide.slice_mut(s![.., ..base]).assign(&x);
+        for (i, mut row) in wide.rows_mut().into_iter().enumerate() {
+            for (k, p) in self.periodic.iter().enumerate() {
+                let [c, sn] = p.features(states[[i, p.dim]]);
+                row[p.dim] = 0.0;
+                row[base + 2 * k] = c;
+                row[base + 2 * k + 1] = sn;
+            }
+        }
+        Ok(wide)
     }
 
     /// Turns a gradient with respect to the input rows, `(n, dim)`, into one
     /// with respect to the actions, `(n, act_dim)` (the chain rule through
     /// the standardisation).
     pub fn action_grad(&self, grad_x: ArrayView2<'_, f64>) -> Array2<f64> {
-        let mut g = grad_x.slice(s![.., self.obs_dim..]).to_owned();
+        let mut g = grad_x
+            .slice(s![.., self.obs_dim..self.obs_dim + self.act_dim])
+            .to_owned();
         let inv: Array1<f64> = self.scale[self.obs_dim..].iter().map(|v| 1.0 / v).collect();
         g *= &inv.view().insert_axis(Axis(0));
         g
@@ -212,6 +273,29 @@ fn check_state_dims(dims: &[usize], obs_dim: usize, field: &str) -> Result<()> {
     }
 }
 
+/// Refuses a periodic dimension at or beyond `obs_dim`, one given twice,
+/// or a period that is not finite and above 0.
+pub(crate) fn check_periodic(dims: &[PeriodicDim], obs_dim: usize) -> Result<()> {
+    let field = "periodic_state_dims";
+    let idx: Vec<usize> = dims.iter().map(|p| p.dim).collect();
+    check_state_dims(&idx, obs_dim, field)?;
+    for (k, p) in dims.iter().enumerate() {
+        if !(p.period.is_finite() && p.period > 0.0) {
+            return Err(Error::InvalidConfig {
+                field: format!("{field}[{k}].period"),
+                reason: format!("must be finite and above 0, got {}", p.period),
+            });
+        }
+        if idx[..k].contains(&p.dim) {
+            return Err(Error::InvalidConfig {
+                field: format!("{field}[{k}].dim"),
+                reason: format!("state dimension {} is given twice", p.dim),
+            });
+        }
+    }
+    Ok(())
+}
+
 fn concat(states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Array2<f64> {
     let (n, o, a) = (states.nrows(), states.ncols(), actions.ncols());
     let mut x = Array2::zeros((n, o + a));
@@ -261,6 +345,66 @@ mod tests {
         assert_eq!(plain, InputMap::fit(s.view(), a.view(), true).unwrap());
         assert_eq!(plain.scale[2], 1.0);
         assert!((plain.scale[1] - 0.01).abs() < 1e-12);
+    }
+
+    #[test]
+    fn periodic_dims_read_by_their_phase_after_the_action() {
+        let p = PeriodicDim {
+            dim: 1,
+            period: 2.0,
+        };
+        let s = array![[0.5, 0.3], [0.5, 2.3], [0.5, -1.7]];
+        let a = array![[0.25], [0.25], [0.25]];
+        let map = InputMap::fit(s.view(), a.view(), false)
+            .unwrap()
+            .with_periodic(&[p])
+            .unwrap();
+        assert_eq!(map.dim(), 5);
+        let x = map.apply(s.view(), a.view()).unwrap();
+        let r = 2.0 / std::f64::consts::TAU;
+        let phase = 0.3 / r;
+        for i in 0..3 {
+            // the state's other dimension and the action are unchanged, the
+            // periodic one reads 0 in its place; values a period apart read
+            // the same.
+            assert_eq!(x[[i, 0]], 0.5);
+            assert_eq!(x[[i, 1]], 0.0);
+            assert_eq!(x[[i, 2]], 0.25);
+            assert!((x[[i, 3]] - r * phase.cos()).abs() < 1e-12);
+            assert!((x[[i, 4]] - r * phase.sin()).abs() < 1e-12);
+        }
+        // a small step moves the input by about as much as the value.
+        let step = map
+            .apply(array![[0.5, 0.301]].view(), array![[0.25]].view())
+            .unwrap();
+        let moved =
+            ((step[[0, 3]] - x[[0, 3]]).powi(2) + (step[[0, 4]] - x[[0, 4]]).powi(2)).sqrt();
+        assert!((moved - 0.001).abs() < 1e-6, "{moved}");
+        // the action's gradient is read from the action's column only.
+        let mut g = Array2::zeros((1, 5));
+        g[[0, 2]] = 3.0;
+        g[[0, 3]] = 7.0;
+        assert_eq!(map.action_grad(g.view()), array![[3.0]]);
+    }
+
+    #[test]
+    fn bad_periodic_dims_are_refused_by_name() {
+        let s = array![[0.0, 1.0]];
+        let a = array![[0.0]];
+        let map = InputMap::fit(s.view(), a.view(), false).unwrap();
+        for (dims, want) in [
+            (vec![(2, 1.0)], "state dimension 2 does not exist"),
+            (vec![(0, 0.0)], "periodic_state_dims[0].period"),
+            (vec![(0, f64::NAN)], "periodic_state_dims[0].period"),
+            (vec![(1, 1.0), (1, 2.0)], "periodic_state_dims[1].dim"),
+        ] {
+            let dims: Vec<PeriodicDim> = dims
+                .into_iter()
+                .map(|(dim, period)| PeriodicDim { dim, period })
+                .collect();
+            let e = map.clone().with_periodic(&dims).unwrap_err();
+            assert!(e.to_string().contains(want), "{e}");
+        }
     }
 
     #[test]

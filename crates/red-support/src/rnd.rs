@@ -17,7 +17,7 @@ use red_nets::{Activation, AdamConfig, FrozenMlp, Init, Mlp, MlpConfig, Tape, Wo
 use serde::{Deserialize, Serialize};
 
 use crate::estimator::{FitProgress, SupportEstimatorConfig, SupportModel};
-use crate::input::InputMap;
+use crate::input::{InputMap, PeriodicDim};
 use crate::train::{Regression, fit_regression, to_f32};
 use crate::{Error, Result};
 
@@ -67,6 +67,12 @@ pub struct RndConfig {
     /// value, in the fit and in every score.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub ignored_state_dims: Vec<usize>,
+    /// State dimensions the estimator reads by their phase alone (our
+    /// addition; empty, the release's, reads none so): each becomes the
+    /// two inputs of [`PeriodicDim`] after the action, and reads as 0 in
+    /// its own place, in the fit and in every score.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub periodic_state_dims: Vec<PeriodicDim>,
 }
 
 impl Default for RndConfig {
@@ -90,6 +96,7 @@ impl Default for RndConfig {
             min_std: 0.0,
             target_bias: 0.0,
             ignored_state_dims: Vec::new(),
+            periodic_state_dims: Vec::new(),
         }
     }
 }
@@ -137,6 +144,7 @@ impl RndConfig {
             }
         }
         self.adam.validate().map_err(|e| prefix("adam", e))?;
+        crate::input::check_periodic(&self.periodic_state_dims, usize::MAX)?;
         Ok(())
     }
 
@@ -371,7 +379,8 @@ impl SupportEstimatorConfig for RndConfig {
     ) -> Result<Rnd> {
         self.validate()?;
         let input = InputMap::fit_floored(states, actions, self.standardize, self.min_std)?
-            .ignoring(&self.ignored_state_dims)?;
+            .ignoring(&self.ignored_state_dims)?
+            .with_periodic(&self.periodic_state_dims)?;
         let x = to_f32(input.apply(states, actions)?.view());
         let d = input.dim();
         let mut pairs = Vec::with_capacity(self.ensemble);
@@ -437,6 +446,71 @@ mod tests {
             Array2::from_shape_fn((n, 3), |_| rng.random_range(-1.0..1.0)),
             Array2::from_shape_fn((n, 2), |_| rng.random_range(-1.0..1.0)),
         )
+    }
+
+    #[test]
+    fn periodic_dims_score_a_period_apart_alike_and_keep_the_gradient() {
+        let (s, a) = data(64, 1);
+        let cfg = RndConfig {
+            periodic_state_dims: vec![PeriodicDim {
+                dim: 0,
+                period: 2.0,
+            }],
+            activation: Activation::Tanh,
+            ..small()
+        };
+        let model = cfg
+            .fit(
+                s.view(),
+                a.view(),
+                &mut ChaCha8Rng::seed_from_u64(2),
+                &mut no_progress,
+            )
+            .unwrap();
+        let mut shifted = s.clone();
+        shifted.column_mut(0).mapv_inplace(|v| v + 2.0);
+        let (x, y) = (
+            model.score(s.view(), a.view()).unwrap(),
+            model.score(shifted.view(), a.view()).unwrap(),
+        );
+        for (u, v) in x.iter().zip(&y) {
+            assert!((u - v).abs() < 1e-6 * (1.0 + u.abs()), "{u} {v}");
+        }
+        // a shift by half the period is a different input.
+        shifted.column_mut(0).mapv_inplace(|v| v - 1.0);
+        let z = model.score(shifted.view(), a.view()).unwrap();
+        assert!(x.iter().zip(&z).any(|(u, v)| (u - v).abs() > 1e-3));
+        // the action gradient still matches finite differences.
+        let (_, g) = model.score_grad_action(s.view(), a.view()).unwrap();
+        let h = 1e-3;
+        for j in 0..2 {
+            let (mut up, mut down) = (a.clone(), a.clone());
+            up.column_mut(j).mapv_inplace(|v| v + h);
+            down.column_mut(j).mapv_inplace(|v| v - h);
+            let fd = (model.score(s.view(), up.view()).unwrap()
+                - model.score(s.view(), down.view()).unwrap())
+                / (2.0 * h);
+            for i in 0..4 {
+                assert!(
+                    (fd[i] - g[[i, j]]).abs() < 1e-2 * (1.0 + fd[i].abs()),
+                    "{} {}",
+                    fd[i],
+                    g[[i, j]]
+                );
+            }
+        }
+        let bad = RndConfig {
+            periodic_state_dims: vec![PeriodicDim {
+                dim: 0,
+                period: -1.0,
+            }],
+            ..small()
+        };
+        let e = bad.validate().unwrap_err();
+        assert!(
+            e.to_string().contains("periodic_state_dims[0].period"),
+            "{e}"
+        );
     }
 
     #[test]
