@@ -34,6 +34,25 @@ pub struct InputMap {
     /// adds two inputs after the action, see [`PeriodicDim`].
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub periodic: Vec<PeriodicDim>,
+    /// State dimensions read no higher than a cap (our addition; empty,
+    /// the release's, caps none), see [`CappedDim`].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub capped: Vec<CappedDim>,
+}
+
+/// A state dimension that the estimator reads as `min(v, max)` of its raw
+/// value `v`, before any standardisation (whose statistics are then those
+/// of the capped values, see [`cap_states`]): every value above the cap
+/// reads as the cap. The driving road's margin to the nearer wall capped at
+/// half a lane reads alike in every lane but for the outer lanes' wall
+/// side.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CappedDim {
+    /// The state dimension.
+    pub dim: usize,
+    /// The highest value it reads (finite).
+    pub max: f64,
 }
 
 /// A state dimension that the estimator reads by its phase alone: the raw
@@ -127,6 +146,7 @@ impl InputMap {
             scale,
             ignored: Vec::new(),
             periodic: Vec::new(),
+            capped: Vec::new(),
         })
     }
 
@@ -156,6 +176,19 @@ impl InputMap {
         Ok(self)
     }
 
+    /// The same map with the state dimensions of `dims` read no higher
+    /// than their caps ([`CappedDim`]). A map that standardises should be
+    /// fitted on [`cap_states`] of the batch.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for a dimension at or beyond `obs_dim`, one
+    /// given twice, or a cap that is not finite.
+    pub fn with_caps(mut self, dims: &[CappedDim]) -> Result<Self> {
+        check_caps(dims, self.obs_dim)?;
+        self.capped = dims.to_vec();
+        Ok(self)
+    }
+
     /// Length of an input row: `obs_dim + act_dim`, and two more for each
     /// periodic dimension.
     pub fn dim(&self) -> usize {
@@ -175,8 +208,12 @@ impl InputMap {
         check_pairs(states, actions, self.obs_dim, self.act_dim)?;
         check_state_dims(&self.ignored, self.obs_dim, "ignored")?;
         check_periodic(&self.periodic, self.obs_dim)?;
+        check_caps(&self.capped, self.obs_dim)?;
         let mut x = concat(states, actions);
         for mut row in x.rows_mut() {
+            for c in &self.capped {
+                row[c.dim] = row[c.dim].min(c.max);
+            }
             for (j, v) in row.iter_mut().enumerate() {
                 *v = (*v - self.mean[j]) / self.scale[j];
             }
@@ -271,6 +308,43 @@ fn check_state_dims(dims: &[usize], obs_dim: usize, field: &str) -> Result<()> {
         }),
         None => Ok(()),
     }
+}
+
+/// `states` with each dimension of `dims` capped ([`CappedDim`]): what a
+/// standardising map with these caps is fitted on.
+///
+/// # Errors
+/// As [`InputMap::with_caps`].
+pub fn cap_states(states: ArrayView2<'_, f64>, dims: &[CappedDim]) -> Result<Array2<f64>> {
+    check_caps(dims, states.ncols())?;
+    let mut out = states.to_owned();
+    for c in dims {
+        out.column_mut(c.dim).mapv_inplace(|v| v.min(c.max));
+    }
+    Ok(out)
+}
+
+/// Refuses a capped dimension at or beyond `obs_dim`, one given twice, or
+/// a cap that is not finite.
+pub(crate) fn check_caps(dims: &[CappedDim], obs_dim: usize) -> Result<()> {
+    let field = "capped_state_dims";
+    let idx: Vec<usize> = dims.iter().map(|c| c.dim).collect();
+    check_state_dims(&idx, obs_dim, field)?;
+    for (k, c) in dims.iter().enumerate() {
+        if !c.max.is_finite() {
+            return Err(Error::InvalidConfig {
+                field: format!("{field}[{k}].max"),
+                reason: format!("must be finite, got {}", c.max),
+            });
+        }
+        if idx[..k].contains(&c.dim) {
+            return Err(Error::InvalidConfig {
+                field: format!("{field}[{k}].dim"),
+                reason: format!("state dimension {} is given twice", c.dim),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Refuses a periodic dimension at or beyond `obs_dim`, one given twice,
@@ -385,6 +459,52 @@ mod tests {
         g[[0, 2]] = 3.0;
         g[[0, 3]] = 7.0;
         assert_eq!(map.action_grad(g.view()), array![[3.0]]);
+    }
+
+    #[test]
+    fn capped_dims_read_no_higher_than_the_cap_and_standardise_capped() {
+        let caps = [CappedDim { dim: 0, max: 1.0 }];
+        let s = array![[0.0, 4.0], [2.0, 5.0], [0.5, 6.0]];
+        let a = array![[0.0], [1.0], [2.0]];
+        let map = InputMap::fit(s.view(), a.view(), false)
+            .unwrap()
+            .with_caps(&caps)
+            .unwrap();
+        let x = map.apply(s.view(), a.view()).unwrap();
+        assert_eq!(x.column(0).to_vec(), vec![0.0, 1.0, 0.5]);
+        assert_eq!(x.column(1).to_vec(), vec![4.0, 5.0, 6.0]);
+        // standardised on the capped batch: the capped column has mean 0.
+        let capped = cap_states(s.view(), &caps).unwrap();
+        let std_map = InputMap::fit(capped.view(), a.view(), true)
+            .unwrap()
+            .with_caps(&caps)
+            .unwrap();
+        let z = std_map.apply(s.view(), a.view()).unwrap();
+        assert!(z.column(0).sum().abs() < 1e-12);
+        assert_eq!(z, std_map.apply(capped.view(), a.view()).unwrap());
+        for (dims, want) in [
+            (
+                vec![CappedDim { dim: 2, max: 1.0 }],
+                "state dimension 2 does not exist",
+            ),
+            (
+                vec![CappedDim {
+                    dim: 0,
+                    max: f64::INFINITY,
+                }],
+                "capped_state_dims[0].max",
+            ),
+            (
+                vec![
+                    CappedDim { dim: 1, max: 1.0 },
+                    CappedDim { dim: 1, max: 2.0 },
+                ],
+                "capped_state_dims[1].dim",
+            ),
+        ] {
+            let e = map.clone().with_caps(&dims).unwrap_err();
+            assert!(e.to_string().contains(want), "{e}");
+        }
     }
 
     #[test]

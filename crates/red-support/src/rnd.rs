@@ -17,7 +17,7 @@ use red_nets::{Activation, AdamConfig, FrozenMlp, Init, Mlp, MlpConfig, Tape, Wo
 use serde::{Deserialize, Serialize};
 
 use crate::estimator::{FitProgress, SupportEstimatorConfig, SupportModel};
-use crate::input::{InputMap, PeriodicDim};
+use crate::input::{CappedDim, InputMap, PeriodicDim, cap_states};
 use crate::train::{Regression, fit_regression, to_f32};
 use crate::{Error, Result};
 
@@ -73,6 +73,11 @@ pub struct RndConfig {
     /// its own place, in the fit and in every score.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub periodic_state_dims: Vec<PeriodicDim>,
+    /// State dimensions the estimator reads no higher than a cap (our
+    /// addition; empty, the release's, caps none), see [`CappedDim`], in
+    /// the fit and in every score.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub capped_state_dims: Vec<CappedDim>,
 }
 
 impl Default for RndConfig {
@@ -97,6 +102,7 @@ impl Default for RndConfig {
             target_bias: 0.0,
             ignored_state_dims: Vec::new(),
             periodic_state_dims: Vec::new(),
+            capped_state_dims: Vec::new(),
         }
     }
 }
@@ -145,6 +151,7 @@ impl RndConfig {
         }
         self.adam.validate().map_err(|e| prefix("adam", e))?;
         crate::input::check_periodic(&self.periodic_state_dims, usize::MAX)?;
+        crate::input::check_caps(&self.capped_state_dims, usize::MAX)?;
         Ok(())
     }
 
@@ -378,9 +385,11 @@ impl SupportEstimatorConfig for RndConfig {
         progress: &mut dyn FnMut(FitProgress),
     ) -> Result<Rnd> {
         self.validate()?;
-        let input = InputMap::fit_floored(states, actions, self.standardize, self.min_std)?
+        let capped = cap_states(states, &self.capped_state_dims)?;
+        let input = InputMap::fit_floored(capped.view(), actions, self.standardize, self.min_std)?
             .ignoring(&self.ignored_state_dims)?
-            .with_periodic(&self.periodic_state_dims)?;
+            .with_periodic(&self.periodic_state_dims)?
+            .with_caps(&self.capped_state_dims)?;
         let x = to_f32(input.apply(states, actions)?.view());
         let d = input.dim();
         let mut pairs = Vec::with_capacity(self.ensemble);
@@ -511,6 +520,37 @@ mod tests {
             e.to_string().contains("periodic_state_dims[0].period"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn capped_dims_score_values_above_the_cap_alike() {
+        let (s, a) = data(64, 1);
+        for standardize in [false, true] {
+            let cfg = RndConfig {
+                capped_state_dims: vec![CappedDim { dim: 1, max: 0.0 }],
+                standardize,
+                ..small()
+            };
+            let model = cfg
+                .fit(
+                    s.view(),
+                    a.view(),
+                    &mut ChaCha8Rng::seed_from_u64(2),
+                    &mut no_progress,
+                )
+                .unwrap();
+            let (mut up, mut down) = (s.clone(), s.clone());
+            up.column_mut(1).fill(0.5);
+            down.column_mut(1).fill(3.0);
+            let (x, y) = (
+                model.score(up.view(), a.view()).unwrap(),
+                model.score(down.view(), a.view()).unwrap(),
+            );
+            assert_eq!(x, y);
+            down.column_mut(1).fill(-0.5);
+            let z = model.score(down.view(), a.view()).unwrap();
+            assert!(x.iter().zip(&z).any(|(u, v)| (u - v).abs() > 1e-6));
+        }
     }
 
     #[test]
