@@ -327,43 +327,50 @@ pub fn cap_states(states: ArrayView2<'_, f64>, dims: &[CappedDim]) -> Result<Arr
 /// Refuses a capped dimension at or beyond `obs_dim`, one given twice, or
 /// a cap that is not finite.
 pub(crate) fn check_caps(dims: &[CappedDim], obs_dim: usize) -> Result<()> {
-    let field = "capped_state_dims";
-    let idx: Vec<usize> = dims.iter().map(|c| c.dim).collect();
-    check_state_dims(&idx, obs_dim, field)?;
-    for (k, c) in dims.iter().enumerate() {
-        if !c.max.is_finite() {
-            return Err(Error::InvalidConfig {
-                field: format!("{field}[{k}].max"),
-                reason: format!("must be finite, got {}", c.max),
-            });
-        }
-        if idx[..k].contains(&c.dim) {
-            return Err(Error::InvalidConfig {
-                field: format!("{field}[{k}].dim"),
-                reason: format!("state dimension {} is given twice", c.dim),
-            });
-        }
-    }
-    Ok(())
+    let list: Vec<(usize, f64)> = dims.iter().map(|c| (c.dim, c.max)).collect();
+    check_dim_list(&list, obs_dim, "capped_state_dims", "max", "finite", |v| {
+        v.is_finite()
+    })
 }
 
 /// Refuses a periodic dimension at or beyond `obs_dim`, one given twice,
 /// or a period that is not finite and above 0.
 pub(crate) fn check_periodic(dims: &[PeriodicDim], obs_dim: usize) -> Result<()> {
-    let field = "periodic_state_dims";
-    let idx: Vec<usize> = dims.iter().map(|p| p.dim).collect();
+    let list: Vec<(usize, f64)> = dims.iter().map(|p| (p.dim, p.period)).collect();
+    check_dim_list(
+        &list,
+        obs_dim,
+        "periodic_state_dims",
+        "period",
+        "finite and above 0",
+        |v| v.is_finite() && v > 0.0,
+    )
+}
+
+/// Refuses, in the list `field` of (state dimension, value) settings, a
+/// dimension at or beyond `obs_dim`, one given twice, or a value (named
+/// `value`) that `ok` refuses (`want` says what it must be).
+fn check_dim_list(
+    list: &[(usize, f64)],
+    obs_dim: usize,
+    field: &str,
+    value: &str,
+    want: &str,
+    ok: fn(f64) -> bool,
+) -> Result<()> {
+    let idx: Vec<usize> = list.iter().map(|&(d, _)| d).collect();
     check_state_dims(&idx, obs_dim, field)?;
-    for (k, p) in dims.iter().enumerate() {
-        if !(p.period.is_finite() && p.period > 0.0) {
+    for (k, &(d, v)) in list.iter().enumerate() {
+        if !ok(v) {
             return Err(Error::InvalidConfig {
-                field: format!("{field}[{k}].period"),
-                reason: format!("must be finite and above 0, got {}", p.period),
+                field: format!("{field}[{k}].{value}"),
+                reason: format!("must be {want}, got {v}"),
             });
         }
-        if idx[..k].contains(&p.dim) {
+        if idx[..k].contains(&d) {
             return Err(Error::InvalidConfig {
                 field: format!("{field}[{k}].dim"),
-                reason: format!("state dimension {} is given twice", p.dim),
+                reason: format!("state dimension {d} is given twice"),
             });
         }
     }

@@ -449,6 +449,17 @@ mod tests {
         }
     }
 
+    /// `cfg` fitted on `s`, `a` from the stream of seed 2.
+    fn fit_seed2(cfg: &RndConfig, s: &Array2<f64>, a: &Array2<f64>) -> Rnd {
+        cfg.fit(
+            s.view(),
+            a.view(),
+            &mut ChaCha8Rng::seed_from_u64(2),
+            &mut no_progress,
+        )
+        .unwrap()
+    }
+
     fn data(n: usize, seed: u64) -> (Array2<f64>, Array2<f64>) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         (
@@ -468,14 +479,7 @@ mod tests {
             activation: Activation::Tanh,
             ..small()
         };
-        let model = cfg
-            .fit(
-                s.view(),
-                a.view(),
-                &mut ChaCha8Rng::seed_from_u64(2),
-                &mut no_progress,
-            )
-            .unwrap();
+        let model = fit_seed2(&cfg, &s, &a);
         let mut shifted = s.clone();
         shifted.column_mut(0).mapv_inplace(|v| v + 2.0);
         let (x, y) = (
@@ -531,14 +535,7 @@ mod tests {
                 standardize,
                 ..small()
             };
-            let model = cfg
-                .fit(
-                    s.view(),
-                    a.view(),
-                    &mut ChaCha8Rng::seed_from_u64(2),
-                    &mut no_progress,
-                )
-                .unwrap();
+            let model = fit_seed2(&cfg, &s, &a);
             let (mut up, mut down) = (s.clone(), s.clone());
             up.column_mut(1).fill(0.5);
             down.column_mut(1).fill(3.0);
@@ -565,14 +562,7 @@ mod tests {
                 activation: Activation::Tanh,
                 ..small()
             };
-            let model = cfg
-                .fit(
-                    s.view(),
-                    a.view(),
-                    &mut ChaCha8Rng::seed_from_u64(2),
-                    &mut no_progress,
-                )
-                .unwrap();
+            let model = fit_seed2(&cfg, &s, &a);
             let (qs, qa) = data(5, 3);
             let (sc, g) = model.score_grad_action(qs.view(), qa.view()).unwrap();
             let plain = model.score(qs.view(), qa.view()).unwrap();
