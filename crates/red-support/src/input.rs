@@ -1,5 +1,7 @@
 //! The estimators' input: the concatenation `x = [s, a]`, checked, and
-//! optionally standardised with the expert statistics.
+//! optionally standardised with the expert statistics; state dimensions
+//! may be left out, capped, or read by their phase (two more columns after
+//! the action).
 
 use ndarray::{Array1, Array2, ArrayView2, Axis, s};
 use serde::{Deserialize, Serialize};
@@ -11,7 +13,8 @@ use crate::{Error, Result};
 const MIN_STD: f64 = 1e-8;
 
 /// Maps state-action batches to the estimator's input rows `[s, a]`,
-/// standardised per dimension when fitted with `standardize = true`.
+/// standardised per dimension when fitted with `standardize = true`, then
+/// the two phase columns of each periodic dimension (never standardised).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InputMap {
@@ -60,8 +63,10 @@ pub struct CappedDim {
 /// `r cos(2 pi v / period)` and `r sin(2 pi v / period)` with
 /// `r = period / (2 pi)`, so values a whole period apart read the same,
 /// and near any value a small change moves the input by as much as it
-/// moved `v` itself. The driving road's lateral position read with the
-/// lane width as its period is the place within a lane, whichever lane.
+/// moved `v` itself. The two inputs are never standardised (nor floored):
+/// they stay in the state's own units. The driving road's lateral position
+/// read with the lane width as its period is the place within a lane,
+/// whichever lane.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PeriodicDim {
@@ -72,7 +77,8 @@ pub struct PeriodicDim {
 }
 
 impl PeriodicDim {
-    /// The two inputs of the raw value `v`.
+    /// The two inputs `[r cos, r sin]` of the raw value `v`, in the
+    /// state's units.
     pub fn features(&self, v: f64) -> [f64; 2] {
         let r = self.period / std::f64::consts::TAU;
         let phase = v / r;
@@ -196,7 +202,7 @@ impl InputMap {
     }
 
     /// The input rows of a batch: `(n, obs_dim)` and `(n, act_dim)` in,
-    /// `(n, obs_dim + act_dim)` out.
+    /// `(n, self.dim())` out.
     ///
     /// # Errors
     /// As [`check_pairs`].
@@ -209,33 +215,28 @@ impl InputMap {
         check_state_dims(&self.ignored, self.obs_dim, "ignored")?;
         check_periodic(&self.periodic, self.obs_dim)?;
         check_caps(&self.capped, self.obs_dim)?;
-        let mut x = concat(states, actions);
-        for mut row in x.rows_mut() {
+        let (o, a) = (self.obs_dim, self.act_dim);
+        let mut x = Array2::zeros((states.nrows(), self.dim()));
+        x.slice_mut(s![.., ..o]).assign(&states);
+        x.slice_mut(s![.., o..o + a]).assign(&actions);
+        for (i, mut row) in x.rows_mut().into_iter().enumerate() {
             for c in &self.capped {
                 row[c.dim] = row[c.dim].min(c.max);
             }
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = (*v - self.mean[j]) / self.scale[j];
+            for j in 0..o + a {
+                row[j] = (row[j] - self.mean[j]) / self.scale[j];
             }
             for &j in &self.ignored {
                 row[j] = 0.0;
             }
-        }
-        if self.periodic.is_empty() {
-            return Ok(x);
-        }
-        let base = self.obs_dim + self.act_dim;
-        let mut wide = Array2::zeros((x.nrows(), self.dim()));
-        wide.slice_mut(s![.., ..base]).assign(&x);
-        for (i, mut row) in wide.rows_mut().into_iter().enumerate() {
             for (k, p) in self.periodic.iter().enumerate() {
                 let [c, sn] = p.features(states[[i, p.dim]]);
                 row[p.dim] = 0.0;
-                row[base + 2 * k] = c;
-                row[base + 2 * k + 1] = sn;
+                row[o + a + 2 * k] = c;
+                row[o + a + 2 * k + 1] = sn;
             }
         }
-        Ok(wide)
+        Ok(x)
     }
 
     /// Turns a gradient with respect to the input rows, `(n, dim)`, into one
@@ -314,9 +315,15 @@ fn check_state_dims(dims: &[usize], obs_dim: usize, field: &str) -> Result<()> {
 /// standardising map with these caps is fitted on.
 ///
 /// # Errors
-/// As [`InputMap::with_caps`].
+/// As [`InputMap::with_caps`], and [`Error::NonFinite`] for a state that
+/// is not finite (a cap would hide a NaN).
 pub fn cap_states(states: ArrayView2<'_, f64>, dims: &[CappedDim]) -> Result<Array2<f64>> {
     check_caps(dims, states.ncols())?;
+    if states.iter().any(|v| !v.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "states".into(),
+        });
+    }
     let mut out = states.to_owned();
     for c in dims {
         out.column_mut(c.dim).mapv_inplace(|v| v.min(c.max));
@@ -512,6 +519,32 @@ mod tests {
             let e = map.clone().with_caps(&dims).unwrap_err();
             assert!(e.to_string().contains(want), "{e}");
         }
+    }
+
+    #[test]
+    fn periodic_columns_read_the_raw_value_when_standardising_and_round_trip() {
+        let p = PeriodicDim {
+            dim: 0,
+            period: 0.5,
+        };
+        let caps = [CappedDim { dim: 1, max: 2.0 }];
+        let s = array![[1.0, 1.0], [3.0, 2.0], [8.0, 6.0]];
+        let a = array![[0.0], [1.0], [5.0]];
+        let map = InputMap::fit(cap_states(s.view(), &caps).unwrap().view(), a.view(), true)
+            .unwrap()
+            .with_periodic(&[p])
+            .unwrap()
+            .with_caps(&caps)
+            .unwrap();
+        let x = map.apply(s.view(), a.view()).unwrap();
+        for i in 0..3 {
+            assert_eq!([x[[i, 3]], x[[i, 4]]], p.features(s[[i, 0]]));
+        }
+        let back: InputMap = serde_json::from_str(&serde_json::to_string(&map).unwrap()).unwrap();
+        assert_eq!(back, map);
+        assert_eq!(back.apply(s.view(), a.view()).unwrap(), x);
+        let e = cap_states(array![[f64::NAN, 0.0]].view(), &caps).unwrap_err();
+        assert!(e.to_string().contains("states"), "{e}");
     }
 
     #[test]

@@ -1,7 +1,8 @@
 //! Random network distillation as support estimation (paper Sec. 3.1-3.2,
 //! Eq. 5-6).
 //!
-//! A fixed, randomly initialised target `f_θ: [s, a] -> R^K` and a
+//! A fixed, randomly initialised target `f_θ: [s, a] -> R^K` (the input
+//! row of [`InputMap`]) and a
 //! predictor `f_θ̂` trained by regression on the expert pairs. The score is
 //! the MEAN over the `K` outputs of `(f_θ̂(x) - f_θ(x))^2`, as in the
 //! release (the paper writes the squared norm; the two differ by the factor
@@ -69,8 +70,10 @@ pub struct RndConfig {
     pub ignored_state_dims: Vec<usize>,
     /// State dimensions the estimator reads by their phase alone (our
     /// addition; empty, the release's, reads none so): each becomes the
-    /// two inputs of [`PeriodicDim`] after the action, and reads as 0 in
-    /// its own place, in the fit and in every score.
+    /// two inputs of [`PeriodicDim`] after the action (in the state's
+    /// units, never standardised), and reads as 0 in its own place, in the
+    /// fit and in every score. A dimension may stand in only one of
+    /// `ignored_state_dims`, `periodic_state_dims` and `capped_state_dims`.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub periodic_state_dims: Vec<PeriodicDim>,
     /// State dimensions the estimator reads no higher than a cap (our
@@ -152,6 +155,29 @@ impl RndConfig {
         self.adam.validate().map_err(|e| prefix("adam", e))?;
         crate::input::check_periodic(&self.periodic_state_dims, usize::MAX)?;
         crate::input::check_caps(&self.capped_state_dims, usize::MAX)?;
+        for (field, d) in self
+            .periodic_state_dims
+            .iter()
+            .map(|p| ("periodic_state_dims", p.dim))
+            .chain(
+                self.capped_state_dims
+                    .iter()
+                    .map(|c| ("capped_state_dims", c.dim)),
+            )
+        {
+            let elsewhere = self.ignored_state_dims.contains(&d)
+                || (field == "capped_state_dims"
+                    && self.periodic_state_dims.iter().any(|p| p.dim == d));
+            if elsewhere {
+                return Err(Error::InvalidConfig {
+                    field: field.into(),
+                    reason: format!(
+                        "state dimension {d} also stands in another of ignored_state_dims, \
+                         periodic_state_dims and capped_state_dims: give each dimension one"
+                    ),
+                });
+            }
+        }
         Ok(())
     }
 
@@ -547,6 +573,65 @@ mod tests {
             down.column_mut(1).fill(-0.5);
             let z = model.score(down.view(), a.view()).unwrap();
             assert!(x.iter().zip(&z).any(|(u, v)| (u - v).abs() > 1e-6));
+        }
+    }
+
+    #[test]
+    fn a_capped_fit_is_the_fit_on_the_capped_states() {
+        let (s, a) = data(64, 1);
+        let caps = vec![CappedDim { dim: 1, max: 0.0 }];
+        let cfg = RndConfig {
+            capped_state_dims: caps.clone(),
+            standardize: true,
+            ..small()
+        };
+        let capped = cap_states(s.view(), &caps).unwrap();
+        let (m1, m2) = (fit_seed2(&cfg, &s, &a), fit_seed2(&cfg, &capped, &a));
+        assert_eq!(
+            m1.score(s.view(), a.view()).unwrap(),
+            m2.score(s.view(), a.view()).unwrap()
+        );
+        // without the cap the statistics differ, and so do the scores.
+        let plain = RndConfig {
+            standardize: true,
+            ..small()
+        };
+        assert_ne!(
+            fit_seed2(&plain, &s, &a).score(s.view(), a.view()).unwrap(),
+            fit_seed2(&plain, &capped, &a)
+                .score(s.view(), a.view())
+                .unwrap()
+        );
+    }
+
+    #[test]
+    fn a_dimension_may_take_one_input_setting() {
+        let periodic = vec![PeriodicDim {
+            dim: 2,
+            period: 1.0,
+        }];
+        for cfg in [
+            RndConfig {
+                ignored_state_dims: vec![2],
+                periodic_state_dims: periodic.clone(),
+                ..small()
+            },
+            RndConfig {
+                capped_state_dims: vec![CappedDim { dim: 2, max: 0.0 }],
+                periodic_state_dims: periodic.clone(),
+                ..small()
+            },
+            RndConfig {
+                ignored_state_dims: vec![2],
+                capped_state_dims: vec![CappedDim { dim: 2, max: 0.0 }],
+                ..small()
+            },
+        ] {
+            let e = cfg.validate().unwrap_err();
+            assert!(
+                e.to_string().contains("state dimension 2 also stands"),
+                "{e}"
+            );
         }
     }
 
