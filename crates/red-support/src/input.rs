@@ -213,8 +213,21 @@ impl InputMap {
     ) -> Result<Array2<f64>> {
         check_pairs(states, actions, self.obs_dim, self.act_dim)?;
         check_state_dims(&self.ignored, self.obs_dim, "ignored")?;
-        check_periodic(&self.periodic, self.obs_dim)?;
-        check_caps(&self.capped, self.obs_dim)?;
+        // The lists' values were checked when the map was built; here only
+        // what indexing needs, without allocating on the per-step path.
+        let dims = self.periodic.iter().map(|p| p.dim);
+        if let Some(d) = dims
+            .chain(self.capped.iter().map(|c| c.dim))
+            .find(|&d| d >= self.obs_dim)
+        {
+            return Err(Error::InvalidConfig {
+                field: "periodic or capped".into(),
+                reason: format!(
+                    "state dimension {d} does not exist: states have {} dimensions",
+                    self.obs_dim
+                ),
+            });
+        }
         let (o, a) = (self.obs_dim, self.act_dim);
         let mut x = Array2::zeros((states.nrows(), self.dim()));
         x.slice_mut(s![.., ..o]).assign(&states);

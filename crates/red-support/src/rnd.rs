@@ -155,28 +155,25 @@ impl RndConfig {
         self.adam.validate().map_err(|e| prefix("adam", e))?;
         crate::input::check_periodic(&self.periodic_state_dims, usize::MAX)?;
         crate::input::check_caps(&self.capped_state_dims, usize::MAX)?;
-        for (field, d) in self
+        let twice = |field: &str, d: usize| Error::InvalidConfig {
+            field: field.into(),
+            reason: format!(
+                "state dimension {d} also stands in another of ignored_state_dims, \
+                 periodic_state_dims and capped_state_dims: give each dimension one"
+            ),
+        };
+        let ignored = &self.ignored_state_dims;
+        if let Some(p) = self
             .periodic_state_dims
             .iter()
-            .map(|p| ("periodic_state_dims", p.dim))
-            .chain(
-                self.capped_state_dims
-                    .iter()
-                    .map(|c| ("capped_state_dims", c.dim)),
-            )
+            .find(|p| ignored.contains(&p.dim))
         {
-            let elsewhere = self.ignored_state_dims.contains(&d)
-                || (field == "capped_state_dims"
-                    && self.periodic_state_dims.iter().any(|p| p.dim == d));
-            if elsewhere {
-                return Err(Error::InvalidConfig {
-                    field: field.into(),
-                    reason: format!(
-                        "state dimension {d} also stands in another of ignored_state_dims, \
-                         periodic_state_dims and capped_state_dims: give each dimension one"
-                    ),
-                });
-            }
+            return Err(twice("periodic_state_dims", p.dim));
+        }
+        if let Some(c) = self.capped_state_dims.iter().find(|c| {
+            ignored.contains(&c.dim) || self.periodic_state_dims.iter().any(|p| p.dim == c.dim)
+        }) {
+            return Err(twice("capped_state_dims", c.dim));
         }
         Ok(())
     }
