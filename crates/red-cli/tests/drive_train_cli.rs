@@ -494,3 +494,72 @@ fn a_finished_run_keeps_its_policies_and_eval_saved_drives_them_again() {
         .to_string();
     assert!(err.contains("config.json"), "{err}");
 }
+
+#[test]
+fn a_kept_learner_drives_by_lookahead_and_without_candidates_as_its_policy() {
+    let dir = tempfile::tempdir().unwrap();
+    let kept = TINY.replacen('{', r#"{"keep_learner": true,"#, 1);
+    let demo = demo();
+    let args = [
+        "--demo",
+        demo.to_str().unwrap(),
+        "--methods",
+        "red",
+        "--steps",
+        "400",
+        "--seed",
+        "3",
+        "--name",
+        "k",
+    ];
+    ok(&cli_with(&kept, &args, dir.path()));
+    let run = dir.path().join("k");
+    assert!(run.join("red_learner.json").is_file());
+    let plain = red_experiments::drive::EvalRequest {
+        method: "red".into(),
+        ..Default::default()
+    };
+    let want = road_percents(&red_experiments::drive::eval_saved(&run, &plain).unwrap());
+    let ask = |steer: Vec<f64>| red_experiments::drive::EvalRequest {
+        lookahead: Some(red_experiments::drive::Lookahead {
+            steer,
+            horizon: 1,
+            ..Default::default()
+        }),
+        ..plain.clone()
+    };
+    // No candidates but the policy's own action: the policy's numbers.
+    let out = red_experiments::drive::eval_saved(&run, &ask(Vec::new())).unwrap();
+    assert!(out.contains("acting by lookahead"), "{out}");
+    assert_eq!(road_percents(&out), want, "{out}");
+    // With candidates: the same roads, each a percentage.
+    let out = red_experiments::drive::eval_saved(&run, &ask(vec![-0.3, 0.3])).unwrap();
+    let got = road_percents(&out);
+    assert_eq!(got.len(), want.len(), "{out}");
+    assert!(got.iter().all(|(_, p)| (0.0..=100.0).contains(p)), "{out}");
+    // A zero horizon and a selected policy are refused.
+    let mut zero = ask(vec![0.3]);
+    zero.lookahead.as_mut().unwrap().horizon = 0;
+    let err = red_experiments::drive::eval_saved(&run, &zero)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("horizon"), "{err}");
+    let mut sel = ask(vec![0.3]);
+    sel.selected = true;
+    assert!(red_experiments::drive::eval_saved(&run, &sel).is_err());
+    // A run that kept no learner says how to keep one.
+    std::fs::remove_file(run.join("red_learner.json")).unwrap();
+    let err = red_experiments::drive::eval_saved(&run, &ask(vec![0.3]))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("red_learner.json") && err.contains("keep_learner"),
+        "{err}"
+    );
+    // SAC keeps no model or value: refused before training.
+    let sac = TINY.replacen('{', r#"{"keep_learner": true, "learner": "sac","#, 1);
+    let o = cli_with(&sac, &args, dir.path());
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("keep_learner"), "{err}");
+}

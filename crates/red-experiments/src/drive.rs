@@ -288,6 +288,13 @@ pub struct DriveTrainConfig {
     /// run's outcome follows its reward or its learner.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reward_seed: Option<u64>,
+    /// Keep the final learner of `red`, `ae`, `gail` and `gmmil` (SVG(1)-ER
+    /// only): `{method}_learner.json` in the run folder holds its networks
+    /// (policy, model, value) and the method's reward, without the replay
+    /// buffer, so that the final model and value can be studied later
+    /// ([`EvalRequest::lookahead`]). Off by default (a few MB per method).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub keep_learner: bool,
     /// The floor on the standard deviation by which the policy's input
     /// normaliser divides (our setting; the normaliser is fitted on the
     /// demonstration's states, frozen, and clips at ±5). With a floor of
@@ -490,6 +497,7 @@ impl Default for DriveTrainConfig {
             demo_action_smoothing: 0,
             reward_on_states: false,
             reward_seed: None,
+            keep_learner: false,
             policy_obs_min_std: policy_obs_min_std_before_44(),
             policy_obs_soft_tails: true,
         }
@@ -608,6 +616,14 @@ impl DriveTrainConfig {
     /// for the first invalid field.
     pub fn validate(&self) -> Result<()> {
         self.rnd.validate().with_context(|| "train.rnd")?;
+        if self.keep_learner && self.learner != DriveLearner::Svg {
+            return Err(invalid(
+                "keep_learner",
+                "keeps an SVG(1)-ER learner (its model and value); set learner to \"svg\" or \
+                 leave keep_learner out"
+                    .into(),
+            ));
+        }
         self.autoencoder
             .validate()
             .with_context(|| "train.autoencoder")?;
@@ -1264,9 +1280,9 @@ pub fn drive_deterministic(
 
 /// [`drive_deterministic`] keeping the car's pose before the first step
 /// and after every step (for the pictures of a run).
-fn drive_with_poses(
+fn drive_with_poses<A: DriveActor + ?Sized>(
     config: &DriveConfig,
-    policy: &GaussianPolicy,
+    policy: &A,
     seed: u64,
 ) -> Result<(red_core::Trajectory, red_core::EpisodeRun, Vec<CarState>)> {
     let mut env = make_env(config)?;
@@ -1276,7 +1292,7 @@ fn drive_with_poses(
         &mut env,
         obs,
         None,
-        |_, obs| Ok::<_, Error>(policy.act_deterministic(obs)?),
+        |_, obs| policy.action(obs),
         |env, _| {
             poses.push(*env.inner().car());
             Ok(())
@@ -1288,9 +1304,9 @@ fn drive_with_poses(
 /// Drives `policy` deterministically from reset seed `seed`; the own return
 /// is the sum of `reward` plus `terminal` of the last reward, when given
 /// (with [`terminal_penalty`]'s `rule`).
-fn rollout(
+fn rollout<A: DriveActor + ?Sized>(
     config: &DriveConfig,
-    policy: &GaussianPolicy,
+    policy: &A,
     seed: u64,
     reward: Option<(&dyn DifferentiableReward, Option<&TerminalHeuristic>)>,
     rule: EndRule,
@@ -1326,14 +1342,121 @@ fn rollout(
     })
 }
 
+/// What drives an evaluation episode: one deterministic action per
+/// observation.
+pub trait DriveActor {
+    /// The action for `obs`.
+    ///
+    /// # Errors
+    /// The actor's own (a bad observation, a failing network).
+    fn action(&self, obs: &[f64]) -> Result<Vec<f64>>;
+}
+
+impl DriveActor for GaussianPolicy {
+    fn action(&self, obs: &[f64]) -> Result<Vec<f64>> {
+        Ok(self.act_deterministic(obs)?)
+    }
+}
+
+/// A final learner kept by `train.keep_learner`: SVG(1)-ER's networks
+/// without the replay buffer, and the method's reward.
+#[derive(Clone, Serialize, Deserialize)]
+struct KeptLearner {
+    learner: Svg1,
+    #[serde(with = "stored_reward")]
+    reward: ImitationReward,
+}
+
+/// The file of a run folder that holds `method`'s kept final learner.
+pub fn learner_file(method: &str) -> String {
+    format!("{method}_learner.json")
+}
+
+/// Acting by lookahead through a kept learner's model and value, for
+/// [`eval_saved`]: at each step the final policy's action and the
+/// candidates around it are scored by [`Svg1::lookahead_scores`] and the
+/// best is driven (our addition, for diagnosis; docs/results/drive.md,
+/// session 53).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Lookahead {
+    /// Offsets added to the policy's steering (0 is always tried).
+    pub steer: Vec<f64>,
+    /// Offsets added to its pedal (0 is always tried).
+    pub pedal: Vec<f64>,
+    /// Model steps before the value is read (at least 1).
+    pub horizon: usize,
+    /// Leave RED's (the method's) reward out of the score: `gamma^h V`.
+    pub value_only: bool,
+    /// Centre the candidates on the learner's current policy instead of
+    /// the reported (averaged) one.
+    pub current_policy: bool,
+}
+
+/// The policy acting by lookahead: candidates `mu(s) + (ds, dp)` over the
+/// offsets, the one with the highest [`Svg1::lookahead_scores`] is driven
+/// (the first of equals, so the policy's own action wins a tie).
+struct LookaheadActor<'a> {
+    kept: &'a KeptLearner,
+    ask: &'a Lookahead,
+    offsets: Vec<(f64, f64)>,
+}
+
+impl<'a> LookaheadActor<'a> {
+    fn new(kept: &'a KeptLearner, ask: &'a Lookahead) -> Self {
+        let with_zero = |v: &[f64]| {
+            let mut v: Vec<f64> = v.iter().copied().filter(|d| *d != 0.0).collect();
+            v.insert(0, 0.0);
+            v
+        };
+        let (steer, pedal) = (with_zero(&ask.steer), with_zero(&ask.pedal));
+        let offsets = steer
+            .iter()
+            .flat_map(|&ds| pedal.iter().map(move |&dp| (ds, dp)))
+            .collect();
+        Self { kept, ask, offsets }
+    }
+
+    fn policy(&self) -> &GaussianPolicy {
+        if self.ask.current_policy {
+            self.kept.learner.policy()
+        } else {
+            self.kept.learner.reported_policy()
+        }
+    }
+}
+
+impl DriveActor for LookaheadActor<'_> {
+    fn action(&self, obs: &[f64]) -> Result<Vec<f64>> {
+        let policy = self.policy();
+        let mu = policy.act_deterministic(obs)?;
+        let n = self.offsets.len();
+        let states = Array2::from_shape_fn((n, obs.len()), |(_, j)| obs[j]);
+        let actions = Array2::from_shape_fn((n, ACT_DIM), |(k, j)| {
+            let (ds, dp) = self.offsets[k];
+            mu[j] + if j == 0 { ds } else { dp }
+        });
+        let reward: Option<&dyn DifferentiableReward> =
+            (!self.ask.value_only).then_some(&self.kept.reward as _);
+        let scores = self.kept.learner.lookahead_scores(
+            policy,
+            states.view(),
+            actions.view(),
+            reward,
+            self.ask.horizon,
+        )?;
+        let best = (1..n).fold(0, |b, k| if scores[k] > scores[b] { k } else { b });
+        Ok(actions.row(best).to_vec())
+    }
+}
+
 /// Evaluates `policy` on `runs` deterministic episodes of `road` (reset
 /// seeds 1000, 1001, ...), returning the evaluation and the paths.
 ///
 /// # Errors
 /// Environment and policy errors.
-pub fn evaluate(
+pub fn evaluate<A: DriveActor + ?Sized>(
     road: &DriveConfig,
-    policy: &GaussianPolicy,
+    policy: &A,
     runs: usize,
 ) -> Result<(PolicyEval, Vec<EvalPath>)> {
     let mut distances = Vec::new();
@@ -1362,10 +1485,10 @@ pub fn evaluate(
 ///
 /// # Errors
 /// Environment and policy errors.
-pub fn evaluate_roads(
+pub fn evaluate_roads<A: DriveActor + ?Sized>(
     road: &DriveConfig,
     track_seeds: &[u64],
-    policy: &GaussianPolicy,
+    policy: &A,
     runs: usize,
 ) -> Result<RoadsEval> {
     let mut percent_per_road = Vec::new();
@@ -1434,6 +1557,20 @@ pub fn load_run_policy(
     Ok((run, policy))
 }
 
+/// `method`'s final learner kept in the run folder `dir`.
+fn load_kept_learner(dir: &Path, method: &str) -> Result<KeptLearner> {
+    let file = dir.join(learner_file(method));
+    if !file.is_file() {
+        return Err(Error::Input {
+            path: file,
+            reason: "no such file: the run did not keep its learner (train it with \
+                     `{\"keep_learner\": true}` in --train-config)"
+                .into(),
+        });
+    }
+    crate::run_dir::read_json(&file)
+}
+
 /// What [`eval_saved`] asks of a finished run.
 #[derive(Debug, Clone, Default)]
 pub struct EvalRequest {
@@ -1448,6 +1585,9 @@ pub struct EvalRequest {
     pub runs: Option<usize>,
     /// Draw the first road's episodes to this PNG.
     pub png: Option<std::path::PathBuf>,
+    /// Act by lookahead through the learner kept by `train.keep_learner`
+    /// instead of the saved policy alone (final policies only).
+    pub lookahead: Option<Lookahead>,
 }
 
 /// Drives a finished run's saved policy again, road by road, and returns
@@ -1460,6 +1600,24 @@ pub struct EvalRequest {
 pub fn eval_saved(dir: &Path, req: &EvalRequest) -> Result<String> {
     use std::fmt::Write as _;
     let (run, policy) = load_run_policy(dir, &req.method, req.selected)?;
+    let kept = match &req.lookahead {
+        Some(_) if req.selected => {
+            return Err(invalid(
+                "lookahead",
+                "drives the final learner; leave out `selected`".into(),
+            ));
+        }
+        Some(_) => Some(load_kept_learner(dir, &req.method)?),
+        None => None,
+    };
+    let lookahead = kept
+        .as_ref()
+        .zip(req.lookahead.as_ref())
+        .map(|(k, ask)| LookaheadActor::new(k, ask));
+    let actor: &dyn DriveActor = match &lookahead {
+        Some(a) => a,
+        None => &policy,
+    };
     let runs = req.runs.unwrap_or(run.eval_runs);
     if runs == 0 {
         return Err(invalid("runs", "must be at least 1".into()));
@@ -1473,9 +1631,24 @@ pub fn eval_saved(dir: &Path, req: &EvalRequest) -> Result<String> {
         req.roads.clone()
     };
     let mut out = format!(
-        "{} {} policy of {}: {runs} deterministic episode(s) per road (reset seeds {EVAL_SEED}..)\n",
+        "{} {} policy{} of {}: {runs} deterministic episode(s) per road (reset seeds {EVAL_SEED}..)\n",
         req.method,
         if req.selected { "selected" } else { "final" },
+        match &req.lookahead {
+            Some(l) => format!(
+                " acting by lookahead (steering {:?}, pedal {:?}, {} model step(s){}{})",
+                l.steer,
+                l.pedal,
+                l.horizon,
+                if l.value_only { ", value only" } else { "" },
+                if l.current_policy {
+                    ", current policy"
+                } else {
+                    ""
+                },
+            ),
+            None => String::new(),
+        },
         dir.display(),
     );
     let mut others = Vec::new();
@@ -1484,7 +1657,7 @@ pub fn eval_saved(dir: &Path, req: &EvalRequest) -> Result<String> {
             track_seed: seed,
             ..run.drive.clone()
         };
-        let (eval, paths) = evaluate(&road, &policy, runs)?;
+        let (eval, paths) = evaluate(&road, actor, runs)?;
         let percent = eval.percent_of_road;
         let ends: Vec<String> = eval
             .distances
@@ -2062,6 +2235,15 @@ fn save_policy(run_dir: &RunDir, file: &str, policy: &GaussianPolicy) -> Result<
 
 /// Evaluates a trained method and saves its policies in the run folder.
 fn finish_method(run: &DriveRunConfig, run_dir: &RunDir, st: MethodState) -> Result<MethodResult> {
+    if run.train.keep_learner
+        && let Learner::Svg(svg) = &st.svg
+    {
+        let kept = KeptLearner {
+            learner: svg.without_replay()?,
+            reward: st.reward.clone(),
+        };
+        run_dir.write_json(&learner_file(&st.method), &kept)?;
+    }
     save_policy(
         run_dir,
         &policy_file(&st.method, false),

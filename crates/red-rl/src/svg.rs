@@ -427,6 +427,79 @@ impl Svg1 {
         })
     }
 
+    /// One-step lookahead through the learned model and value: for each row
+    /// `(s, a)`, `r(s, a) + gamma^horizon V(x_horizon)` where `x_1 = x +
+    /// f(x, a)` and, for `horizon > 1`, `policy`'s mean action drives the
+    /// model on (`x_{k+1} = x_k + f(x_k, mu(x_k))`; the rewards of those
+    /// later steps are not counted, as the reward reads raw states and the
+    /// model predicts prepared ones). Without `reward` the reward term is
+    /// left out. At horizon 1 with a reward this is the quantity the policy
+    /// step ascends, at zero model and policy noise.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for horizon 0; shape errors, the reward's
+    /// errors.
+    pub fn lookahead_scores(
+        &self,
+        policy: &GaussianPolicy,
+        states: ArrayView2<'_, f64>,
+        actions: ArrayView2<'_, f64>,
+        reward: Option<&dyn DifferentiableReward>,
+        horizon: usize,
+    ) -> Result<Vec<f64>> {
+        if horizon == 0 {
+            return Err(Error::InvalidConfig {
+                field: "horizon".into(),
+                reason: "must be at least 1 model step".into(),
+            });
+        }
+        let x = self.policy.prepare_obs(states)?;
+        let input = Self::model_input(x.view(), actions);
+        let mut xn = &x + &self.model.predict(input.view());
+        let mut ws = Workspace::new();
+        for _ in 1..horizon {
+            let mu = policy.distribution(xn.view(), &mut ws)?.mean;
+            let input = Self::model_input(xn.view(), mu.view());
+            xn = &xn + &self.model.predict(input.view());
+        }
+        let v = self.value.predict(xn.view());
+        let discount = self.config.gamma.powi(horizon as i32);
+        let r = match reward {
+            Some(rw) => rw.reward_and_grad(states, actions)?.0.to_vec(),
+            None => vec![0.0; states.nrows()],
+        };
+        Ok(r.iter()
+            .zip(v.column(0))
+            .map(|(r, v)| r + discount * *v as f64)
+            .collect())
+    }
+
+    /// The learner without its replay buffer and kept episodes: its
+    /// networks, optimisers and settings, for a small file to study the
+    /// final model and value (training on from it starts a fresh buffer).
+    ///
+    /// # Errors
+    /// None in practice (the buffer's shape comes from the policy).
+    pub fn without_replay(&self) -> Result<Self> {
+        let (o, a) = (self.policy.obs_dim(), self.policy.act_dim());
+        Ok(Self {
+            config: self.config.clone(),
+            policy: self.policy.clone(),
+            model: self.model.clone(),
+            value: self.value.clone(),
+            value_target: self.value_target.clone(),
+            policy_opt: self.policy_opt.clone(),
+            model_opt: self.model_opt.clone(),
+            value_opt: self.value_opt.clone(),
+            replay: ReplayBuffer::new(1, o, a)?.with_behaviour_logp(),
+            env_steps: self.env_steps,
+            avg_policy: self.avg_policy.clone(),
+            avg_count: self.avg_count,
+            demos: self.demos.clone(),
+            sil: Vec::new(),
+        })
+    }
+
     /// The settings.
     pub fn config(&self) -> &SvgConfig {
         &self.config

@@ -824,3 +824,70 @@ fn n_step_value_targets_learn_and_one_step_is_td0() {
         "final distance {before} -> {after}"
     );
 }
+
+#[test]
+fn lookahead_scores_are_the_policy_objective_at_zero_noise() {
+    let config = SvgConfig {
+        hidden: vec![8],
+        gamma: 0.9,
+        learning_starts: 0,
+        ..SvgConfig::default()
+    };
+    let (mut svg, mut rng) = fresh(5, &config);
+    train_plain(&mut svg, 60, &mut rng);
+    let mut batch = svg.sample(16, &mut rng).unwrap();
+    batch.terminated = vec![false; 16];
+    let policy = svg.policy().clone();
+    let mu = Array2::from_shape_fn((16, 2), |(i, j)| {
+        policy
+            .act_deterministic(&batch.states.row(i).to_vec())
+            .unwrap()[j]
+    });
+    let inputs = red_rl::svg::PolicyInputs {
+        eta: Array2::zeros((16, 2)),
+        xi: Array2::zeros((16, 2)),
+        weights: vec![1.0; 16],
+    };
+    let (obj, _) = svg.policy_objective(&batch, &inputs, &ReachReward).unwrap();
+    let with_r = svg
+        .lookahead_scores(
+            &policy,
+            batch.states.view(),
+            mu.view(),
+            Some(&ReachReward),
+            1,
+        )
+        .unwrap();
+    let mean = with_r.iter().sum::<f64>() / 16.0;
+    assert!((mean - obj).abs() < 1e-5, "{mean} against {obj}");
+    // Without the reward: gamma V(x'), the same rows less their rewards.
+    let without = svg
+        .lookahead_scores(&policy, batch.states.view(), mu.view(), None, 1)
+        .unwrap();
+    for (i, (w, v)) in with_r.iter().zip(&without).enumerate() {
+        let r = reach_reward(&batch.states.row(i).to_vec(), &mu.row(i).to_vec());
+        assert!((w - v - r).abs() < 1e-9, "row {i}: {w} - {v} != {r}");
+    }
+    // A longer horizon reads the value further on: a different number.
+    let h3 = svg
+        .lookahead_scores(&policy, batch.states.view(), mu.view(), None, 3)
+        .unwrap();
+    assert!(h3.iter().zip(&without).any(|(a, b)| (a - b).abs() > 1e-6));
+    assert!(
+        svg.lookahead_scores(&policy, batch.states.view(), mu.view(), None, 0)
+            .is_err()
+    );
+    // Without the replay the networks, and so the scores, are the same.
+    let small = svg.without_replay().unwrap();
+    assert_eq!(small.replay_len(), 0);
+    let again = small
+        .lookahead_scores(
+            &policy,
+            batch.states.view(),
+            mu.view(),
+            Some(&ReachReward),
+            1,
+        )
+        .unwrap();
+    assert_eq!(again, with_r);
+}
