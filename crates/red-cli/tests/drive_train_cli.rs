@@ -543,10 +543,16 @@ fn a_kept_learner_drives_by_lookahead_and_without_candidates_as_its_policy() {
     let err = red_experiments::drive::eval_saved(&run, &zero)
         .unwrap_err()
         .to_string();
-    assert!(err.contains("horizon"), "{err}");
+    assert!(err.contains("lookahead.horizon"), "{err}");
     let mut sel = ask(vec![0.3]);
     sel.selected = true;
-    assert!(red_experiments::drive::eval_saved(&run, &sel).is_err());
+    let err = red_experiments::drive::eval_saved(&run, &sel)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("selected"), "{err}");
+    let mut bc = ask(vec![0.3]);
+    bc.method = "bc".into();
+    assert!(red_experiments::drive::eval_saved(&run, &bc).is_err());
     // A run that kept no learner says how to keep one.
     std::fs::remove_file(run.join("red_learner.json")).unwrap();
     let err = red_experiments::drive::eval_saved(&run, &ask(vec![0.3]))

@@ -5,7 +5,7 @@
 //! the best is driven. Prints `eval_saved`'s lines for each run folder.
 //! `cargo run --release -p red-experiments --example drive_lookahead --
 //! [--steer -0.1,-0.05,0.05,0.1] [--pedal 0.1] [--horizon 1]
-//! [--value-only] [--current-policy] RUN_DIR...`
+//! [--value-only] [--current-policy] [--method red] RUN_DIR...`
 use red_experiments::drive::{EvalRequest, Lookahead, eval_saved};
 
 fn offsets(v: Option<String>) -> Result<Vec<f64>, Box<dyn std::error::Error>> {
@@ -22,6 +22,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..Lookahead::default()
     };
     let mut dirs = Vec::new();
+    let mut method = "red".to_string();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -30,19 +31,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--horizon" => ask.horizon = args.next().ok_or("--horizon takes a number")?.parse()?,
             "--value-only" => ask.value_only = true,
             "--current-policy" => ask.current_policy = true,
+            "--method" => method = args.next().ok_or("--method takes red, ae, gail or gmmil")?,
             _ => dirs.push(std::path::PathBuf::from(a)),
         }
     }
     if dirs.is_empty() {
         return Err(
             "usage: drive_lookahead [--steer A,B] [--pedal A,B] [--horizon H] \
-                    [--value-only] [--current-policy] RUN_DIR..."
+                    [--value-only] [--current-policy] [--method M] RUN_DIR..."
                 .into(),
         );
     }
     for dir in dirs {
         let req = EvalRequest {
-            method: "red".into(),
+            method: method.clone(),
             lookahead: Some(ask.clone()),
             ..EvalRequest::default()
         };

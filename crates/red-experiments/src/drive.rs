@@ -290,9 +290,11 @@ pub struct DriveTrainConfig {
     pub reward_seed: Option<u64>,
     /// Keep the final learner of `red`, `ae`, `gail` and `gmmil` (SVG(1)-ER
     /// only): `{method}_learner.json` in the run folder holds its networks
-    /// (policy, model, value) and the method's reward, without the replay
+    /// (policies, model, value and its target), optimiser moments and
+    /// demonstration pairs, and the method's reward, without the replay
     /// buffer, so that the final model and value can be studied later
-    /// ([`EvalRequest::lookahead`]). Off by default (a few MB per method).
+    /// ([`EvalRequest::lookahead`]). Off by default (about 8 MB per method
+    /// at the drive defaults).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub keep_learner: bool,
     /// The floor on the standard deviation by which the policy's input
@@ -1376,8 +1378,9 @@ pub fn learner_file(method: &str) -> String {
 /// [`eval_saved`]: at each step the final policy's action and the
 /// candidates around it are scored by [`Svg1::lookahead_scores`] and the
 /// best is driven (our addition, for diagnosis; docs/results/drive.md,
-/// session 53).
-#[derive(Debug, Clone, PartialEq, Default)]
+/// session 53). Candidates are not clamped to the action box (the
+/// environment clips what it is given).
+#[derive(Debug, Clone, PartialEq)]
 pub struct Lookahead {
     /// Offsets added to the policy's steering (0 is always tried).
     pub steer: Vec<f64>,
@@ -1390,6 +1393,20 @@ pub struct Lookahead {
     /// Centre the candidates on the learner's current policy instead of
     /// the reported (averaged) one.
     pub current_policy: bool,
+}
+
+impl Default for Lookahead {
+    /// No candidates but the policy's own action, one model step, RED's
+    /// reward in the score, the reported policy.
+    fn default() -> Self {
+        Self {
+            steer: Vec::new(),
+            pedal: Vec::new(),
+            horizon: 1,
+            value_only: false,
+            current_policy: false,
+        }
+    }
 }
 
 /// The policy acting by lookahead: candidates `mu(s) + (ds, dp)` over the
@@ -1560,6 +1577,14 @@ pub fn load_run_policy(
 /// `method`'s final learner kept in the run folder `dir`.
 fn load_kept_learner(dir: &Path, method: &str) -> Result<KeptLearner> {
     let file = dir.join(learner_file(method));
+    if method == "bc" {
+        return Err(Error::Input {
+            path: file,
+            reason: "bc has no learner (its policy is the warm start): ask for red, ae, gail \
+                     or gmmil"
+                .into(),
+        });
+    }
     if !file.is_file() {
         return Err(Error::Input {
             path: file,
@@ -1599,14 +1624,22 @@ pub struct EvalRequest {
 /// errors.
 pub fn eval_saved(dir: &Path, req: &EvalRequest) -> Result<String> {
     use std::fmt::Write as _;
-    let (run, policy) = load_run_policy(dir, &req.method, req.selected)?;
-    let kept = match &req.lookahead {
-        Some(_) if req.selected => {
+    if let Some(ask) = &req.lookahead {
+        if req.selected {
             return Err(invalid(
                 "lookahead",
                 "drives the final learner; leave out `selected`".into(),
             ));
         }
+        if ask.horizon == 0 {
+            return Err(invalid(
+                "lookahead.horizon",
+                "must be at least 1 model step (--horizon)".into(),
+            ));
+        }
+    }
+    let (run, policy) = load_run_policy(dir, &req.method, req.selected)?;
+    let kept = match &req.lookahead {
         Some(_) => Some(load_kept_learner(dir, &req.method)?),
         None => None,
     };

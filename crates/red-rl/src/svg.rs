@@ -427,14 +427,16 @@ impl Svg1 {
         })
     }
 
-    /// One-step lookahead through the learned model and value: for each row
+    /// Lookahead through the learned model and value: for each row
     /// `(s, a)`, `r(s, a) + gamma^horizon V(x_horizon)` where `x_1 = x +
     /// f(x, a)` and, for `horizon > 1`, `policy`'s mean action drives the
     /// model on (`x_{k+1} = x_k + f(x_k, mu(x_k))`; the rewards of those
     /// later steps are not counted, as the reward reads raw states and the
     /// model predicts prepared ones). Without `reward` the reward term is
-    /// left out. At horizon 1 with a reward this is the quantity the policy
-    /// step ascends, at zero model and policy noise.
+    /// left out. Terminal states are not predicted (the value is read as if
+    /// the episode went on). At horizon 1 with a reward this is the
+    /// quantity the policy step ascends for a non-terminal transition, at
+    /// zero model and policy noise and unit importance weight.
     ///
     /// # Errors
     /// [`Error::InvalidConfig`] for horizon 0; shape errors, the reward's
@@ -475,8 +477,11 @@ impl Svg1 {
     }
 
     /// The learner without its replay buffer and kept episodes: its
-    /// networks, optimisers and settings, for a small file to study the
-    /// final model and value (training on from it starts a fresh buffer).
+    /// networks (policy, averaged policy, model, value and its target),
+    /// optimiser moments, settings and demonstration pairs, for a small
+    /// file to study the final model and value. Training on from it
+    /// starts from an empty buffer of the configured size, but at the
+    /// copied step count, so without a warm-up.
     ///
     /// # Errors
     /// None in practice (the buffer's shape comes from the policy).
@@ -491,7 +496,7 @@ impl Svg1 {
             policy_opt: self.policy_opt.clone(),
             model_opt: self.model_opt.clone(),
             value_opt: self.value_opt.clone(),
-            replay: ReplayBuffer::new(1, o, a)?.with_behaviour_logp(),
+            replay: ReplayBuffer::new(self.config.buffer_size, o, a)?.with_behaviour_logp(),
             env_steps: self.env_steps,
             avg_policy: self.avg_policy.clone(),
             avg_count: self.avg_count,
