@@ -8,6 +8,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use red_core::{BoxSpace, Env, Info, Space, Step, TimeLimit};
 use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
 
 use crate::config::{ACT_DIM, DT, DriveConfig, NUM_LANES, NUM_RAYS, OBS_DIM};
 use crate::track::Track;
@@ -328,6 +329,24 @@ pub struct DriveEnv {
     home_share: f64,
     /// `(states, share)` of [`DriveEnv::set_start_states`].
     start_pool: Option<(Vec<CarState>, f64)>,
+    /// [`DriveEnv::set_crash_restarts`].
+    crash_restarts: Option<CrashRestarts>,
+}
+
+/// Restarts from states shortly before earlier crashes
+/// ([`DriveEnv::set_crash_restarts`]).
+#[derive(Debug, Clone)]
+struct CrashRestarts {
+    share: f64,
+    back_steps: usize,
+    capacity: usize,
+    /// `(track seed, state)` from `back_steps` steps before each recorded
+    /// crash; once full, the oldest is replaced first.
+    pool: Vec<(u64, CarState)>,
+    next: usize,
+    /// The states before the episode's last `back_steps` steps, oldest
+    /// first.
+    recent: VecDeque<CarState>,
 }
 
 /// The roads a seeded reset draws from ([`DriveEnv::set_road_pool`]).
@@ -387,6 +406,7 @@ impl DriveEnv {
             home_track_seed: config.track_seed,
             home_share: 0.0,
             start_pool: None,
+            crash_restarts: None,
         })
     }
 
@@ -476,6 +496,62 @@ impl DriveEnv {
         Ok(())
     }
 
+    /// Makes a share of the seeded resets start where an earlier episode
+    /// of this env was `back_steps` steps before it crashed (on that
+    /// episode's road, with the usual start noise) instead of at the
+    /// road's start: failure-state restarts (our addition), so the learner
+    /// practises the moments that ended its drives as often as it likes.
+    /// Each collision adds its state (or the episode's first, if it was
+    /// shorter) to a pool of `capacity`, the oldest replaced first; the
+    /// pool starts empty and lives as long as the env. `share = 0` turns
+    /// it off and empties the pool; with an empty pool no random number is
+    /// drawn, so episodes are as without it until the first crash.
+    /// Unseeded resets always start at the road's start.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for a share outside `[0, 1]`, or
+    /// `back_steps` or `capacity` of 0 with a share above 0.
+    pub fn set_crash_restarts(
+        &mut self,
+        share: f64,
+        back_steps: usize,
+        capacity: usize,
+    ) -> Result<()> {
+        if !(0.0..=1.0).contains(&share) {
+            return Err(Error::InvalidConfig {
+                field: "crash restarts",
+                reason: format!(
+                    "the share of episodes restarting before a crash must be in [0, 1], got \
+                     {share}"
+                ),
+            });
+        }
+        if share > 0.0 && (back_steps == 0 || capacity == 0) {
+            return Err(Error::InvalidConfig {
+                field: "crash restarts",
+                reason: format!(
+                    "restarts need at least 1 step back and room for 1 state, got {back_steps} \
+                     step(s) back and room for {capacity}"
+                ),
+            });
+        }
+        self.crash_restarts = (share > 0.0).then(|| CrashRestarts {
+            share,
+            back_steps,
+            capacity,
+            pool: Vec::new(),
+            next: 0,
+            recent: VecDeque::with_capacity(back_steps + 1),
+        });
+        Ok(())
+    }
+
+    /// The pool of [`DriveEnv::set_crash_restarts`]: `(track seed, state)`
+    /// of each recorded crash still kept, in no particular order.
+    pub fn crash_restart_states(&self) -> &[(u64, CarState)] {
+        self.crash_restarts.as_ref().map_or(&[], |c| &c.pool)
+    }
+
     /// The static world (settings, layout, shapes).
     pub fn world(&self) -> &World {
         &self.world
@@ -557,12 +633,22 @@ impl Env for DriveEnv {
     }
 
     fn reset(&mut self, seed: Option<u64>) -> red_core::Result<(Vec<f64>, Info)> {
+        let mut restart = None;
         if let Some(s) = seed {
             self.rng = ChaCha8Rng::seed_from_u64(s);
-            // A pool road, or the road the env was built on (no pool, or the
-            // home share's draw; no number is drawn at share 0).
-            let track_seed = match self.road_pool {
-                Some(pool)
+            // A state before an earlier crash (no number is drawn while the
+            // pool is empty).
+            if let Some(c) = &self.crash_restarts
+                && !c.pool.is_empty()
+                && self.rng.random::<f64>() < c.share
+            {
+                restart = Some(c.pool[self.rng.random_range(0..c.pool.len())]);
+            }
+            // Its road, a pool road, or the road the env was built on (no
+            // pool, or the home share's draw; no number is drawn at share 0).
+            let track_seed = match (restart, self.road_pool) {
+                (Some((track_seed, _)), _) => track_seed,
+                (None, Some(pool))
                     if !(self.home_share > 0.0 && self.rng.random::<f64>() < self.home_share) =>
                 {
                     pool.first.wrapping_add(s % pool.count)
@@ -584,10 +670,15 @@ impl Env for DriveEnv {
             heading: 0.0,
             speed: c.initial_speed,
         };
-        if let Some((states, share)) = &self.start_pool
+        if let Some((_, state)) = restart {
+            start = state;
+        } else if let Some((states, share)) = &self.start_pool
             && self.rng.random::<f64>() < *share
         {
             start = states[self.rng.random_range(0..states.len())];
+        }
+        if let Some(c) = &mut self.crash_restarts {
+            c.recent.clear();
         }
         let mut noise = |scale: f64| {
             if scale > 0.0 {
@@ -625,6 +716,23 @@ impl Env for DriveEnv {
         let before = self.car.x.min(road);
         let mut car = self.car;
         let outcome = self.world.advance(&mut car, action);
+        if let Some(c) = &mut self.crash_restarts {
+            if c.recent.len() == c.back_steps {
+                c.recent.pop_front();
+            }
+            c.recent.push_back(self.car);
+            if outcome == Outcome::Collision
+                && let Some(&before) = c.recent.front()
+            {
+                let entry = (self.world.config.track_seed, before);
+                if c.pool.len() < c.capacity {
+                    c.pool.push(entry);
+                } else {
+                    c.pool[c.next] = entry;
+                    c.next = (c.next + 1) % c.capacity;
+                }
+            }
+        }
         self.car = car;
         let reward = self.car.x.min(road) - before;
         let terminated = outcome != Outcome::Driving;
@@ -779,6 +887,79 @@ mod tests {
         pooled.set_start_states(vec![], 0.0).unwrap();
         pooled.set_road_pool(500, 3);
         assert!(pooled.set_start_states(vec![far], 0.5).is_err());
+    }
+
+    /// Steers hard left from a seeded reset until the car hits the wall;
+    /// returns the states before each step.
+    fn crash_into_the_wall(env: &mut DriveEnv, seed: u64) -> Vec<CarState> {
+        env.reset(Some(seed)).unwrap();
+        let mut before = Vec::new();
+        loop {
+            before.push(*env.car());
+            let step = env.step(&[1.0, 0.5]).unwrap();
+            if step.terminated {
+                assert_eq!(step.info.get(INFO_COLLISION), Some(1.0));
+                return before;
+            }
+            assert!(before.len() < 500, "no crash");
+        }
+    }
+
+    #[test]
+    fn crash_restarts_start_before_earlier_crashes_on_their_road() {
+        let config = DriveConfig::default();
+        let mut plain = DriveEnv::new(&config).unwrap();
+        let mut env = DriveEnv::new(&config).unwrap();
+        assert!(env.set_crash_restarts(1.5, 5, 2).is_err());
+        assert!(env.set_crash_restarts(0.5, 0, 2).is_err());
+        assert!(env.set_crash_restarts(0.5, 5, 0).is_err());
+        env.set_crash_restarts(0.5, 5, 2).unwrap();
+        env.set_road_pool(500, 3);
+        plain.set_road_pool(500, 3);
+        // An empty pool: the same episodes as without restarts.
+        for s in 0..5 {
+            assert_eq!(
+                plain.reset(Some(s)).unwrap().0,
+                env.reset(Some(s)).unwrap().0
+            );
+        }
+        assert!(env.crash_restart_states().is_empty());
+        let before = crash_into_the_wall(&mut env, 4);
+        assert!(before.len() > 5);
+        assert_eq!(
+            env.crash_restart_states(),
+            &[(501, before[before.len() - 5])]
+        );
+        let crash = before[before.len() - 5];
+        let mut restarts = 0;
+        for s in 0..200 {
+            env.reset(Some(s)).unwrap();
+            let car = *env.car();
+            if car.x == crash.x {
+                restarts += 1;
+                assert_eq!(env.config().track_seed, 501);
+                assert!((car.y - crash.y).abs() <= config.start_lateral_noise + 1e-12);
+            } else {
+                assert_eq!(car.x, 0.0);
+            }
+        }
+        assert!(
+            (70..=130).contains(&restarts),
+            "{restarts} of 200 restarted"
+        );
+        // Share 0 empties the pool; the pool keeps the newest `capacity`
+        // crashes (a share that never restarts in practice).
+        env.set_crash_restarts(0.0, 5, 2).unwrap();
+        assert!(env.crash_restart_states().is_empty());
+        env.set_crash_restarts(1e-12, 5, 2).unwrap();
+        let crashes: Vec<(u64, CarState)> = [0, 1, 2]
+            .into_iter()
+            .map(|s| {
+                let before = crash_into_the_wall(&mut env, s);
+                (env.config().track_seed, before[before.len() - 5])
+            })
+            .collect();
+        assert_eq!(env.crash_restart_states(), &[crashes[2], crashes[1]]);
     }
 
     #[test]

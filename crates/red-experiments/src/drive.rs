@@ -297,6 +297,18 @@ pub struct DriveTrainConfig {
     /// at the drive defaults).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub keep_learner: bool,
+    /// Failure-state restarts (our addition, off by default): a share of
+    /// the training episodes start where an earlier training episode was
+    /// `back_steps` steps before it crashed, on that episode's road, with
+    /// the usual start noise ([`red_drive::DriveEnv::set_crash_restarts`]),
+    /// so the learner meets the situations that ended its drives (a late
+    /// counter-steer, a stopped car in its lane) more often than a start
+    /// from the road's beginning would bring them. Checks and evaluations
+    /// always start at the road's start. The pool of crash states is not
+    /// part of a checkpoint: a resumed run starts with an empty pool. A
+    /// training episode's distance in metrics.csv is where it ended.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub crash_restarts: Option<CrashRestartRule>,
     /// The floor on the standard deviation by which the policy's input
     /// normaliser divides (our setting; the normaliser is fitted on the
     /// demonstration's states, frozen, and clips at ±5). With a floor of
@@ -325,6 +337,20 @@ pub struct DriveTrainConfig {
     /// it (runs made before session 45) means the hard clip they used.
     #[serde(default)]
     pub policy_obs_soft_tails: bool,
+}
+
+/// Where and how often training episodes restart before earlier crashes
+/// ([`DriveTrainConfig::crash_restarts`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CrashRestartRule {
+    /// Share of training episodes that restart, in (0, 1].
+    pub share: f64,
+    /// How many steps before its crash a restart begins (20 steps a
+    /// second), at least 1.
+    pub back_steps: usize,
+    /// How many of the latest crashes are kept to restart from, at least 1.
+    pub keep: usize,
 }
 
 /// The policy normaliser's floor of the runs made before session 44.
@@ -500,6 +526,7 @@ impl Default for DriveTrainConfig {
             reward_on_states: false,
             reward_seed: None,
             keep_learner: false,
+            crash_restarts: None,
             policy_obs_min_std: policy_obs_min_std_before_44(),
             policy_obs_soft_tails: true,
         }
@@ -720,6 +747,18 @@ impl DriveTrainConfig {
                 "needs train_roads > 0 (on the demonstration's own road other gaps would move \
                  its stopped cars): set train_roads, or drop the training gaps"
                     .into(),
+            ));
+        }
+        if let Some(r) = &self.crash_restarts
+            && (!(r.share > 0.0 && r.share <= 1.0) || r.back_steps == 0 || r.keep == 0)
+        {
+            return Err(invalid(
+                "train.crash_restarts",
+                format!(
+                    "share must lie in (0, 1], back_steps and keep must be at least 1, got \
+                     share {}, back_steps {}, keep {} (drop the field to turn restarts off)",
+                    r.share, r.back_steps, r.keep
+                ),
             ));
         }
         if self.demo_starts > 0.0 && self.train_roads > 0 {
@@ -2115,6 +2154,11 @@ fn train_method(
     env.inner_mut()
         .set_start_states(starts.to_vec(), cfg.demo_starts)
         .with_context(|| "train.demo_starts")?;
+    if let Some(r) = &cfg.crash_restarts {
+        env.inner_mut()
+            .set_crash_restarts(r.share, r.back_steps, r.keep)
+            .with_context(|| "train.crash_restarts")?;
+    }
     progress.start(
         &format!("{}/{}", st.method, st.svg.name()),
         cfg.steps,
@@ -2887,6 +2931,30 @@ mod tests {
         bad.svg.gamma = 1.5;
         let e = bad.validate().unwrap_err().to_string();
         assert!(e.contains("gamma"), "{e}");
+        let c: DriveTrainConfig = serde_json::from_str(
+            r#"{"crash_restarts": {"share": 0.25, "back_steps": 30, "keep": 100}}"#,
+        )
+        .unwrap();
+        c.validate().unwrap();
+        assert!(
+            serde_json::from_str::<DriveTrainConfig>(r#"{"crash_restarts": {"share": 0.25}}"#)
+                .is_err()
+        );
+        for (share, back_steps, keep) in [
+            (0.0, 30, 100),
+            (1.5, 30, 100),
+            (0.25, 0, 100),
+            (0.25, 30, 0),
+        ] {
+            let mut bad = c.clone();
+            bad.crash_restarts = Some(CrashRestartRule {
+                share,
+                back_steps,
+                keep,
+            });
+            let e = bad.validate().unwrap_err().to_string();
+            assert!(e.contains("train.crash_restarts"), "{e}");
+        }
     }
 
     #[test]
