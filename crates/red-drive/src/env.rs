@@ -501,8 +501,8 @@ impl DriveEnv {
     /// episode's road, with the usual start noise) instead of at the
     /// road's start: failure-state restarts (our addition), so the learner
     /// practises the moments that ended its drives as often as it likes.
-    /// Each collision adds its state (or the episode's first, if it was
-    /// shorter) to a pool of `capacity`, the oldest replaced first; the
+    /// Each collision at least `back_steps` steps into its episode adds
+    /// its state to a pool of `capacity`, the oldest replaced first; the
     /// pool starts empty and lives as long as the env. `share = 0` turns
     /// it off and empties the pool; with an empty pool no random number is
     /// drawn, so episodes are as without it until the first crash.
@@ -541,7 +541,7 @@ impl DriveEnv {
             capacity,
             pool: Vec::new(),
             next: 0,
-            recent: VecDeque::with_capacity(back_steps + 1),
+            recent: VecDeque::new(),
         });
         Ok(())
     }
@@ -594,6 +594,9 @@ impl DriveEnv {
         self.car = car;
         self.car.speed = self.car.speed.clamp(0.0, self.config().max_speed);
         self.in_episode = true;
+        if let Some(c) = &mut self.crash_restarts {
+            c.recent.clear();
+        }
         Ok(self.observe())
     }
 
@@ -677,9 +680,6 @@ impl Env for DriveEnv {
         {
             start = states[self.rng.random_range(0..states.len())];
         }
-        if let Some(c) = &mut self.crash_restarts {
-            c.recent.clear();
-        }
         let mut noise = |scale: f64| {
             if scale > 0.0 {
                 self.rng.random_range(-scale..=scale)
@@ -721,7 +721,11 @@ impl Env for DriveEnv {
                 c.recent.pop_front();
             }
             c.recent.push_back(self.car);
+            // Only a crash at least `back_steps` into its episode is kept,
+            // so restarts that crash again at once do not pile up copies of
+            // their own start.
             if outcome == Outcome::Collision
+                && c.recent.len() == c.back_steps
                 && let Some(&before) = c.recent.front()
             {
                 let entry = (self.world.config.track_seed, before);
@@ -960,6 +964,25 @@ mod tests {
             })
             .collect();
         assert_eq!(env.crash_restart_states(), &[crashes[2], crashes[1]]);
+        // A crash fewer than `back_steps` steps after its start, from a
+        // reset or from `reset_to` after a long episode, adds nothing.
+        env.set_crash_restarts(1e-12, 5, 2).unwrap();
+        let before = crash_into_the_wall(&mut env, 4);
+        assert_eq!(env.crash_restart_states().len(), 1);
+        env.reset(Some(4)).unwrap();
+        for _ in 0..10 {
+            env.step(&[0.0, 0.5]).unwrap();
+        }
+        env.reset_to(before[before.len() - 3]).unwrap();
+        let mut steps = 0;
+        while !env.step(&[1.0, 0.5]).unwrap().terminated {
+            steps += 1;
+            assert!(steps < 5, "no crash");
+        }
+        assert_eq!(env.crash_restart_states().len(), 1);
+        env.set_crash_restarts(1e-12, 1000, 2).unwrap();
+        crash_into_the_wall(&mut env, 4);
+        assert!(env.crash_restart_states().is_empty());
     }
 
     #[test]

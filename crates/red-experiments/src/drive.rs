@@ -16,7 +16,8 @@
 //!
 //! Runs write `checkpoint.json` between episodes at a set interval and when
 //! the stop flag is raised; [`resume`] continues one and ends with the
-//! numbers an uninterrupted run would have given.
+//! numbers an uninterrupted run would have given (but with
+//! `train.crash_restarts`, whose pool of crash states starts empty again).
 
 use std::ops::ControlFlow;
 use std::path::Path;
@@ -170,8 +171,7 @@ pub struct DriveTrainConfig {
     /// paper starts every episode at the start). 0 turns it off. Evaluation
     /// and selection checks always start at the road's start. Cannot be
     /// combined with `train_roads`. A training episode's distance in
-    /// metrics.csv is where it ended, so episodes started down the road
-    /// count from there.
+    /// metrics.csv is the distance it drove from where it started.
     pub demo_starts: f64,
     /// Also learn from the demonstration seen in a mirror (our addition,
     /// off by default): every pair is added a second time with left and
@@ -305,8 +305,10 @@ pub struct DriveTrainConfig {
     /// counter-steer, a stopped car in its lane) more often than a start
     /// from the road's beginning would bring them. Checks and evaluations
     /// always start at the road's start. The pool of crash states is not
-    /// part of a checkpoint: a resumed run starts with an empty pool. A
-    /// training episode's distance in metrics.csv is where it ended.
+    /// part of a checkpoint: a resumed run starts with an empty pool, so
+    /// its later episodes differ from an uninterrupted run's. A training
+    /// episode's distance in metrics.csv is the distance it drove from
+    /// where it started.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub crash_restarts: Option<CrashRestartRule>,
     /// The floor on the standard deviation by which the policy's input
@@ -848,6 +850,17 @@ impl DriveRunConfig {
         }
         self.drive.validate().with_context(|| "drive")?;
         self.train.validate()?;
+        if let Some(r) = &self.train.crash_restarts
+            && r.back_steps >= self.drive.time_limit
+        {
+            return Err(invalid(
+                "train.crash_restarts.back_steps",
+                format!(
+                    "must be below the road's time limit ({} steps), got {}",
+                    self.drive.time_limit, r.back_steps
+                ),
+            ));
+        }
         training_road(&self.drive, &self.train)
             .validate()
             .with_context(|| {
@@ -2955,6 +2968,16 @@ mod tests {
             let e = bad.validate().unwrap_err().to_string();
             assert!(e.contains("train.crash_restarts"), "{e}");
         }
+        let mut run = DriveRunConfig::new("d.json", DriveConfig::default());
+        run.train = c;
+        run.validate().unwrap();
+        run.train.crash_restarts = Some(CrashRestartRule {
+            share: 0.25,
+            back_steps: run.drive.time_limit,
+            keep: 100,
+        });
+        let e = run.validate().unwrap_err().to_string();
+        assert!(e.contains("train.crash_restarts.back_steps"), "{e}");
     }
 
     #[test]
