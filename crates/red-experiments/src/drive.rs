@@ -45,7 +45,8 @@ use red_rl::policy::{GaussianPolicy, GaussianPolicyConfig};
 use red_rl::sac::{Sac, SacConfig};
 use red_rl::svg::{EpisodeOutcome, Svg1, SvgConfig};
 use red_support::{
-    AutoencoderConfig, ExpertScores, RndConfig, Sigma1, TerminalHeuristic, TerminalHeuristicConfig,
+    AutoencoderConfig, ExpertScores, KernelPcaConfig, RndConfig, Sigma1, TerminalHeuristic,
+    TerminalHeuristicConfig,
 };
 use serde::{Deserialize, Serialize};
 
@@ -108,6 +109,14 @@ pub struct DriveTrainConfig {
     pub steps: u64,
     /// RED's estimator (the release's RND).
     pub rnd: RndConfig,
+    /// When set, RED's support estimator is exact kernel PCA with these
+    /// settings (the paper's Sec. 2.2 estimator) instead of `rnd`: a
+    /// support score with no random initialisation, so a run's seed no
+    /// longer draws it (only the held-out folds that set `σ1` are drawn).
+    /// Our option for the driving task, off by default; with it,
+    /// `rnd` is not used. docs/results/drive.md, session 55.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub kernel_pca: Option<KernelPcaConfig>,
     /// AE's estimator.
     pub autoencoder: AutoencoderConfig,
     /// `σ1` of RED and AE.
@@ -482,6 +491,7 @@ impl Default for DriveTrainConfig {
         Self {
             steps: 80_000,
             rnd: RndConfig::default(),
+            kernel_pca: None,
             autoencoder: AutoencoderConfig::default(),
             sigma1: Sigma1Rule::default(),
             terminal: TerminalHeuristicConfig {
@@ -651,6 +661,9 @@ impl DriveTrainConfig {
     /// for the first invalid field.
     pub fn validate(&self) -> Result<()> {
         self.rnd.validate().with_context(|| "train.rnd")?;
+        if let Some(k) = &self.kernel_pca {
+            k.validate().with_context(|| "train.kernel_pca")?;
+        }
         if self.keep_learner && self.learner != DriveLearner::Svg {
             return Err(invalid(
                 "keep_learner",
@@ -1066,7 +1079,7 @@ pub fn load_demo(
 mod stored_reward {
     use red_rl::gail::Gail;
     use red_rl::gmmil::Gmmil;
-    use red_support::{Autoencoder, FittedEstimator, RedReward, Rnd};
+    use red_support::{Autoencoder, FittedEstimator, KernelPca, RedReward, Rnd};
     use serde::de::Error as _;
     use serde::ser::Error as _;
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -1077,6 +1090,9 @@ mod stored_reward {
     enum Stored {
         Red(RedReward<Rnd>),
         Ae(RedReward<Autoencoder>),
+        /// RED with kernel PCA (`train.kernel_pca`); boxed, as it holds
+        /// the expert pairs.
+        Kpca(Box<RedReward<KernelPca>>),
         Gail(Box<Gail>),
         Gmmil(Box<Gmmil>),
     }
@@ -1090,9 +1106,8 @@ mod stored_reward {
                         .map(|r| Stored::Red(r.on_states_only(on_states))),
                     FittedEstimator::Autoencoder(m) => RedReward::with_sigma1(m.clone(), sigma1)
                         .map(|r| Stored::Ae(r.on_states_only(on_states))),
-                    FittedEstimator::KernelPca(_) => {
-                        return Err(S::Error::custom("kernel PCA is not a driving method"));
-                    }
+                    FittedEstimator::KernelPca(m) => RedReward::with_sigma1(m.clone(), sigma1)
+                        .map(|r| Stored::Kpca(Box::new(r.on_states_only(on_states)))),
                 }
                 .map_err(S::Error::custom)?
             }
@@ -1118,6 +1133,11 @@ mod stored_reward {
             Stored::Ae(r) => {
                 let (sigma1, on_states) = (r.sigma1(), r.states_only());
                 let model = FittedEstimator::Autoencoder(r.into_model());
+                support(RedReward::with_sigma1(model, sigma1).map(|r| r.on_states_only(on_states)))
+            }
+            Stored::Kpca(r) => {
+                let (sigma1, on_states) = (r.sigma1(), r.states_only());
+                let model = FittedEstimator::KernelPca(r.into_model());
                 support(RedReward::with_sigma1(model, sigma1).map(|r| r.on_states_only(on_states)))
             }
             Stored::Gail(g) => Ok(ImitationReward::Gail(g)),
@@ -1925,7 +1945,12 @@ fn fit_reward(
 ) -> Result<(ImitationReward, Option<TerminalHeuristic>)> {
     match m {
         Method::Red => progress.note(&format!(
-            "red: fitting RND on {} expert pairs ...",
+            "red: fitting {} on {} expert pairs ...",
+            if cfg.kernel_pca.is_some() {
+                "kernel PCA"
+            } else {
+                "RND"
+            },
             es.nrows()
         )),
         Method::Ae => progress.note(&format!(
@@ -1936,6 +1961,7 @@ fn fit_reward(
     }
     let settings = RewardSettings {
         rnd: &cfg.rnd,
+        kernel_pca: cfg.kernel_pca.as_ref(),
         autoencoder: &cfg.autoencoder,
         sigma1: Sigma1::Calibrated {
             quantile: cfg.sigma1.quantile,
@@ -3431,5 +3457,80 @@ mod tests {
         assert_ne!(r0, r3);
         assert_eq!(mixed, r3);
         assert_eq!(rng_mixed, rng0);
+    }
+
+    #[test]
+    fn kernel_pca_is_reds_estimator_when_asked_and_survives_a_checkpoint() {
+        #[derive(Serialize, Deserialize)]
+        struct Wrapped {
+            #[serde(with = "stored_reward")]
+            reward: ImitationReward,
+        }
+        let demos = red_drive::expert_demos(&DriveConfig::default(), 1, 0).unwrap();
+        let (es, ea) = demos.pairs();
+        let cfg: DriveTrainConfig =
+            serde_json::from_str(r#"{"kernel_pca": {"standardize": true}}"#).unwrap();
+        cfg.validate().unwrap();
+        let fit = |seed: u64| {
+            fit_reward(
+                &cfg,
+                Method::Red,
+                seed,
+                es.view(),
+                ea.view(),
+                &mut crate::Silent,
+            )
+            .unwrap()
+        };
+        let (reward, terminal) = fit(0);
+        assert!(terminal.is_some());
+        let r = reward.support().unwrap();
+        assert!(matches!(
+            r.model(),
+            red_support::FittedEstimator::KernelPca(_)
+        ));
+        // No random initialisation: another run seed fits the same model
+        // (only the held-out folds that set sigma1 are drawn).
+        let (v, g) = reward.reward_and_grad(es.view(), ea.view()).unwrap();
+        let other = fit(7).0;
+        let score = |r: &ImitationReward| {
+            use red_support::SupportModel as _;
+            let m = r.support().unwrap().model();
+            m.score(es.view(), ea.view()).unwrap()
+        };
+        assert_eq!(score(&reward), score(&other));
+        // Near 1 on the demo's own pairs, lower away from them.
+        let mean = |x: &ndarray::Array1<f64>| x.sum() / x.len() as f64;
+        let far = ea.mapv(|a| -a);
+        let v_far = reward.reward_and_grad(es.view(), far.view()).unwrap().0;
+        assert!(
+            mean(&v) > 0.8 && mean(&v_far) < mean(&v),
+            "{} {}",
+            mean(&v),
+            mean(&v_far)
+        );
+        assert!(g.iter().all(|x| x.is_finite()));
+        // A checkpoint keeps it exactly.
+        let json = serde_json::to_string(&Wrapped { reward }).unwrap();
+        let back: Wrapped = serde_json::from_str(&json).unwrap();
+        assert!(matches!(
+            back.reward.support().unwrap().model(),
+            red_support::FittedEstimator::KernelPca(_)
+        ));
+        assert_eq!(
+            back.reward.reward_and_grad(es.view(), ea.view()).unwrap(),
+            (v, g)
+        );
+        // Its settings are checked, the field named.
+        let mut bad = cfg.clone();
+        bad.kernel_pca = Some(KernelPcaConfig {
+            tikhonov: Some(-1.0),
+            ..KernelPcaConfig::default()
+        });
+        let e = bad.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("train.kernel_pca") && e.contains("tikhonov"),
+            "{e}"
+        );
     }
 }

@@ -10,7 +10,8 @@ use red_core::{DifferentiableReward, RewardModel};
 use red_rl::gail::{Gail, GailConfig};
 use red_rl::gmmil::{Gmmil, GmmilConfig};
 use red_support::{
-    AutoencoderConfig, ExpertScores, FittedEstimator, RedReward, RndConfig, Sigma1, fit_red_reward,
+    AutoencoderConfig, ExpertScores, FittedEstimator, KernelPcaConfig, RedReward, RndConfig,
+    Sigma1, fit_red_reward,
 };
 use serde::{Deserialize, Serialize};
 
@@ -180,6 +181,9 @@ impl DifferentiableReward for ImitationReward {
 pub struct RewardSettings<'a> {
     /// RED's estimator.
     pub rnd: &'a RndConfig,
+    /// When set, RED fits exact kernel PCA with these settings instead of
+    /// `rnd`.
+    pub kernel_pca: Option<&'a KernelPcaConfig>,
     /// AE's estimator.
     pub autoencoder: &'a AutoencoderConfig,
     /// How RED's and AE's `σ1` is set.
@@ -214,6 +218,15 @@ pub fn fit_reward(
     let (sigma1, scores) = (settings.sigma1, settings.scores);
     Ok(match method {
         Method::Expert | Method::Bc => None,
+        Method::Red if settings.kernel_pca.is_some() => {
+            let cfg = settings.kernel_pca.expect("matched");
+            let r = fit_red_reward(cfg, sigma1, scores, states, actions, rng)?;
+            let sigma1 = r.sigma1();
+            support(RedReward::with_sigma1(
+                FittedEstimator::KernelPca(r.into_model()),
+                sigma1,
+            )?)
+        }
         Method::Red => {
             let r = fit_red_reward(settings.rnd, sigma1, scores, states, actions, rng)?;
             let sigma1 = r.sigma1();

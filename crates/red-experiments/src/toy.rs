@@ -310,6 +310,7 @@ fn run_one(config: &ToyConfig, job: &Job, on_eval: &dyn Fn()) -> Result<RunResul
     let (rnd, autoencoder) = (rnd_config(config), ae_config(config));
     let settings = RewardSettings {
         rnd: &rnd,
+        kernel_pca: None,
         autoencoder: &autoencoder,
         sigma1: RedRewardConfig::default().sigma1,
         scores: config.calibration.scores(es.nrows()),

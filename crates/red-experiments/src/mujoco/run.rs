@@ -642,6 +642,7 @@ impl RunConfig {
     pub fn reward_settings(&self) -> RewardSettings<'_> {
         RewardSettings {
             rnd: &self.rnd,
+            kernel_pca: None,
             autoencoder: &self.autoencoder,
             sigma1: self.sigma1,
             scores: ExpertScores::InSample,
