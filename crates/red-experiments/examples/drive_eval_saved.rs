@@ -5,19 +5,43 @@
 //! (finish / crash / time up) over all the runs given, on the demo's road
 //! and on the unseen roads, and the crashes before 100 m by the episode's
 //! reset seed (1000, 1001, ...) over all roads.
+//! `--runs N` drives N episodes per road instead of the evaluation's 5
+//! (reset seeds 1000, 1001, ...: the first 5 are the evaluation's);
+//! `--roads S,S,..` drives those track seeds instead of the run's roads;
+//! `--png FILE` draws the first road's episodes.
 //! `cargo run --release -p red-experiments --example drive_eval_saved --
-//! RUN_DIR...`
+//! [--runs N] [--roads S,S,..] [--png FILE] RUN_DIR...`
 use red_experiments::drive::{EvalRequest, eval_saved};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let runs: Vec<String> = std::env::args().skip(1).collect();
-    if runs.is_empty() {
-        return Err("usage: drive_eval_saved RUN_DIR...".into());
-    }
-    let req = EvalRequest {
+    const USAGE: &str =
+        "usage: drive_eval_saved [--runs N] [--roads S,S,..] [--png FILE] RUN_DIR...";
+    let mut req = EvalRequest {
         method: "red".into(),
         ..EvalRequest::default()
     };
+    let mut runs: Vec<String> = Vec::new();
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--runs" => {
+                let v = args.next().ok_or(USAGE)?;
+                req.runs = Some(v.parse().map_err(|e| format!("--runs {v}: {e}"))?);
+            }
+            "--roads" => {
+                let v = args.next().ok_or(USAGE)?;
+                req.roads = v
+                    .split(',')
+                    .map(|s| s.trim().parse().map_err(|e| format!("--roads {v}: {e}")))
+                    .collect::<Result<_, _>>()?;
+            }
+            "--png" => req.png = Some(args.next().ok_or(USAGE)?.into()),
+            _ => runs.push(a),
+        }
+    }
+    if runs.is_empty() {
+        return Err(USAGE.into());
+    }
     // [finish, crash, time up] on the demo's road and on unseen roads.
     let (mut demo, mut unseen) = ([0usize; 3], [0usize; 3]);
     // Crashes before 100 m, by the episode's place in the road's line
