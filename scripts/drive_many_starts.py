@@ -24,10 +24,20 @@ def compare(base_path, new_path):
         out = {}
         for r in csv.DictReader(open(p)):
             m = re.match(r"(.+?)-(scripted|s\d+)-s(\d+)$", r["run"])
-            if m:
-                out[(m.group(1), m.group(2), int(m.group(3)))] = r
+            if not m:
+                print(f"# {p}: skipped {r['run']} (not NAME-DEMO-sK)", file=sys.stderr)
+                continue
+            key = (m.group(1), m.group(2), int(m.group(3)))
+            if key in out:
+                sys.exit(f"{p}: run {r['run']} appears twice")
+            out[key] = r
         return out
     base, new = load(base_path), load(new_path)
+    if len({k[0] for k in base}) > 1:
+        sys.exit(f"{base_path} holds several settings ({', '.join(sorted({k[0] for k in base}))}); "
+                 "give a BASE of one setting")
+    if {r["starts"] for r in base.values()} != {r["starts"] for r in new.values()}:
+        print("# warning: the two files drove different numbers of starts", file=sys.stderr)
     cols = ["demo_road_pct_first5", "demo_road_pct_all", "unseen_pct_first5", "unseen_pct_all"]
     for name in sorted({k[0] for k in new}):
         pairs = []
@@ -55,17 +65,23 @@ if args[:1] == ["--compare"]:
         sys.exit(__doc__)
     compare(args[1], args[2])
     sys.exit(0)
-starts, binary = 100, "target/release/examples/drive_eval_saved"
+root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+starts, binary = 100, os.path.join(root, "target/release/examples/drive_eval_saved")
 while args and args[0].startswith("--"):
     flag = args.pop(0)
-    if flag == "--starts":
-        starts = int(args.pop(0))
-    elif flag == "--bin":
-        binary = args.pop(0)
-    else:
-        sys.exit(__doc__)
+    try:
+        if flag == "--starts":
+            starts = int(args.pop(0))
+        elif flag == "--bin":
+            binary = args.pop(0)
+        else:
+            sys.exit(f"unknown option {flag}\n{__doc__}")
+    except (IndexError, ValueError):
+        sys.exit(f"{flag} needs a value\n{__doc__}")
 if not args:
     sys.exit(__doc__)
+if starts < 5:
+    sys.exit("--starts must be at least 5 (the first 5 are the evaluation's)")
 
 def pct(dists, road):
     return 100.0 * sum(min(d, road) for d in dists) / (road * len(dists))

@@ -39,7 +39,7 @@ pub struct TrainArgs {
     #[arg(long, default_value = "runs")]
     pub out_dir: PathBuf,
     /// Training epochs of the RND predictor and of the autoencoder
-    /// (default: the training config's).
+    /// (default: the training config's; kernel PCA has none).
     #[arg(long)]
     pub rnd_epochs: Option<usize>,
     /// Behaviour-cloning epochs of the warm start (default: the training

@@ -36,11 +36,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     .collect::<Result<_, _>>()?;
             }
             "--png" => req.png = Some(args.next().ok_or(USAGE)?.into()),
+            flag if flag.starts_with("--") => {
+                return Err(format!("unknown option {flag}; {USAGE}").into());
+            }
             _ => runs.push(a),
         }
     }
     if runs.is_empty() {
         return Err(USAGE.into());
+    }
+    if req.png.is_some() && runs.len() > 1 {
+        return Err("--png draws one run folder's episodes; give one folder".into());
     }
     // [finish, crash, time up] on the demo's road and on unseen roads.
     let (mut demo, mut unseen) = ([0usize; 3], [0usize; 3]);

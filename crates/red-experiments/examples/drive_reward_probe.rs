@@ -31,6 +31,11 @@ fn main() -> AnyResult<()> {
     let mut road = None;
     for d in runs {
         let (run, policy) = load_run_policy(std::path::Path::new(d), "red", false)?;
+        if run.train.kernel_pca.is_some() {
+            return Err(
+                format!("{d}: RED fitted kernel PCA there; this probe fits RND rewards").into(),
+            );
+        }
         let (t, r) = drive_deterministic(&run.drive, &policy, EVAL_SEED)?;
         road.get_or_insert(run.drive.clone());
         episodes.push((d.clone(), t, r));

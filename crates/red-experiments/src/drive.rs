@@ -1,7 +1,8 @@
 //! The driving experiment (paper Sec. 5.3): imitation from one
 //! demonstration on the `red-drive` road. Every method starts from the same
 //! behaviour-cloning warm start. `red` fits an RND support estimator on the
-//! demonstration, `ae` the autoencoder; both set `σ1` from held-out expert
+//! demonstration (exact kernel PCA with `train.kernel_pca`), `ae` the
+//! autoencoder; both set `σ1` from held-out expert
 //! scores and add the terminal heuristic. `gail` and `gmmil` learn rewards
 //! that adapt to the policy's pairs. All four improve the policy with
 //! SVG(1)-ER on their reward (or SAC, `learner: sac`); `bc` is the warm
@@ -303,7 +304,7 @@ pub struct DriveTrainConfig {
     /// demonstration pairs, and the method's reward, without the replay
     /// buffer, so that the final model and value can be studied later
     /// ([`EvalRequest::lookahead`]). Off by default (about 8 MB per method
-    /// at the drive defaults).
+    /// at the drive defaults, RND; kernel PCA adds its expert pairs).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub keep_learner: bool,
     /// Failure-state restarts (our addition, off by default): a share of
@@ -912,7 +913,8 @@ pub struct DriveFlags {
     pub train_config: Option<std::path::PathBuf>,
     /// Environment steps of SVG(1)-ER per method.
     pub steps: Option<u64>,
-    /// Epochs of the RND predictor and of the autoencoder.
+    /// Epochs of the RND predictor and of the autoencoder (kernel PCA,
+    /// `train.kernel_pca`, has none).
     pub rnd_epochs: Option<usize>,
     /// Behaviour-cloning epochs of the warm start.
     pub bc_epochs: Option<usize>,

@@ -25,7 +25,8 @@ use crate::Result;
 pub enum Method {
     /// TRPO on the environment's true reward (an expert for demonstrations).
     Expert,
-    /// RED: TRPO on `exp(-sigma1 L)` with `L` the RND score (paper Eq. 7).
+    /// RED: TRPO on `exp(-sigma1 L)` with `L` the RND score (paper Eq. 7;
+    /// the driving experiment can ask for exact kernel PCA instead).
     Red,
     /// The autoencoder baseline: the same reward with an autoencoder's
     /// reconstruction error as `L`.
@@ -196,6 +197,16 @@ pub struct RewardSettings<'a> {
     pub gmmil: &'a GmmilConfig,
 }
 
+/// A fitted RED reward with its model wrapped as a [`FittedEstimator`]
+/// (`wrap` is the variant), keeping `σ1`.
+fn as_fitted<M: red_support::SupportModel>(
+    r: RedReward<M>,
+    wrap: fn(M) -> FittedEstimator,
+) -> red_support::Result<RedReward<FittedEstimator>> {
+    let sigma1 = r.sigma1();
+    RedReward::with_sigma1(wrap(r.into_model()), sigma1)
+}
+
 /// Fits `method`'s reward on the expert pairs (`(n, obs_dim)`,
 /// `(n, act_dim)`): RED and AE fit their estimator with `rng` and set `σ1`
 /// ([`fit_red_reward`]); GAIL's discriminator is initialised from
@@ -218,28 +229,19 @@ pub fn fit_reward(
     let (sigma1, scores) = (settings.sigma1, settings.scores);
     Ok(match method {
         Method::Expert | Method::Bc => None,
-        Method::Red if settings.kernel_pca.is_some() => {
-            let cfg = settings.kernel_pca.expect("matched");
-            let r = fit_red_reward(cfg, sigma1, scores, states, actions, rng)?;
-            let sigma1 = r.sigma1();
-            support(RedReward::with_sigma1(
-                FittedEstimator::KernelPca(r.into_model()),
-                sigma1,
-            )?)
-        }
-        Method::Red => {
-            let r = fit_red_reward(settings.rnd, sigma1, scores, states, actions, rng)?;
-            let sigma1 = r.sigma1();
-            support(RedReward::with_sigma1(
-                FittedEstimator::Rnd(r.into_model()),
-                sigma1,
-            )?)
-        }
+        Method::Red => match settings.kernel_pca {
+            Some(k) => {
+                let r = fit_red_reward(k, sigma1, scores, states, actions, rng)?;
+                support(as_fitted(r, FittedEstimator::KernelPca)?)
+            }
+            None => {
+                let r = fit_red_reward(settings.rnd, sigma1, scores, states, actions, rng)?;
+                support(as_fitted(r, FittedEstimator::Rnd)?)
+            }
+        },
         Method::Ae => {
             let r = fit_red_reward(settings.autoencoder, sigma1, scores, states, actions, rng)?;
-            let sigma1 = r.sigma1();
-            let model = FittedEstimator::Autoencoder(r.into_model());
-            support(RedReward::with_sigma1(model, sigma1)?)
+            support(as_fitted(r, FittedEstimator::Autoencoder)?)
         }
         Method::Gail => Some(ImitationReward::Gail(Box::new(Gail::new(
             settings.gail.clone(),
