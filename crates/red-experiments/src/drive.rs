@@ -1083,7 +1083,6 @@ mod stored_reward {
     use red_rl::gmmil::Gmmil;
     use red_support::{Autoencoder, FittedEstimator, KernelPca, RedReward, Rnd};
     use serde::de::Error as _;
-    use serde::ser::Error as _;
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
     use crate::imitation::ImitationReward;
@@ -1101,18 +1100,11 @@ mod stored_reward {
 
     pub fn serialize<S: Serializer>(r: &ImitationReward, s: S) -> Result<S::Ok, S::Error> {
         let stored = match r {
-            ImitationReward::Support(r) => {
-                let (sigma1, on_states) = (r.sigma1(), r.states_only());
-                match r.model() {
-                    FittedEstimator::Rnd(m) => RedReward::with_sigma1(m.clone(), sigma1)
-                        .map(|r| Stored::Red(r.on_states_only(on_states))),
-                    FittedEstimator::Autoencoder(m) => RedReward::with_sigma1(m.clone(), sigma1)
-                        .map(|r| Stored::Ae(r.on_states_only(on_states))),
-                    FittedEstimator::KernelPca(m) => RedReward::with_sigma1(m.clone(), sigma1)
-                        .map(|r| Stored::Kpca(Box::new(r.on_states_only(on_states)))),
-                }
-                .map_err(S::Error::custom)?
-            }
+            ImitationReward::Support(r) => match r.model() {
+                FittedEstimator::Rnd(m) => Stored::Red(r.with_model(m.clone())),
+                FittedEstimator::Autoencoder(m) => Stored::Ae(r.with_model(m.clone())),
+                FittedEstimator::KernelPca(m) => Stored::Kpca(Box::new(r.with_model(m.clone()))),
+            },
             ImitationReward::Gail(g) => Stored::Gail(g.clone()),
             ImitationReward::Gmmil(g) => Stored::Gmmil(g.clone()),
         };
@@ -1120,28 +1112,20 @@ mod stored_reward {
     }
 
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<ImitationReward, D::Error> {
-        let support = |r: Result<RedReward<FittedEstimator>, red_support::Error>| {
-            r.map(|r| ImitationReward::Support(Box::new(r)))
-                .map_err(D::Error::custom)
+        // A file edited by hand is read with the check a fitted reward had.
+        let support = |r: RedReward<FittedEstimator>| {
+            let sigma1 = r.sigma1();
+            if !(sigma1.is_finite() && sigma1 > 0.0) {
+                return Err(D::Error::custom(format!(
+                    "the reward's sigma1 must be finite and > 0, got {sigma1}"
+                )));
+            }
+            Ok(ImitationReward::Support(Box::new(r)))
         };
         match Stored::deserialize(d)? {
-            Stored::Red(r) => {
-                let (sigma1, on_states) = (r.sigma1(), r.states_only());
-                support(
-                    RedReward::with_sigma1(FittedEstimator::Rnd(r.into_model()), sigma1)
-                        .map(|r| r.on_states_only(on_states)),
-                )
-            }
-            Stored::Ae(r) => {
-                let (sigma1, on_states) = (r.sigma1(), r.states_only());
-                let model = FittedEstimator::Autoencoder(r.into_model());
-                support(RedReward::with_sigma1(model, sigma1).map(|r| r.on_states_only(on_states)))
-            }
-            Stored::Kpca(r) => {
-                let (sigma1, on_states) = (r.sigma1(), r.states_only());
-                let model = FittedEstimator::KernelPca(r.into_model());
-                support(RedReward::with_sigma1(model, sigma1).map(|r| r.on_states_only(on_states)))
-            }
+            Stored::Red(r) => support(r.map_model(FittedEstimator::Rnd)),
+            Stored::Ae(r) => support(r.map_model(FittedEstimator::Autoencoder)),
+            Stored::Kpca(r) => support(r.map_model(FittedEstimator::KernelPca)),
             Stored::Gail(g) => Ok(ImitationReward::Gail(g)),
             Stored::Gmmil(g) => Ok(ImitationReward::Gmmil(g)),
         }

@@ -197,16 +197,6 @@ pub struct RewardSettings<'a> {
     pub gmmil: &'a GmmilConfig,
 }
 
-/// A fitted RED reward with its model wrapped as a [`FittedEstimator`]
-/// (`wrap` is the variant), keeping `σ1`.
-fn as_fitted<M: red_support::SupportModel>(
-    r: RedReward<M>,
-    wrap: fn(M) -> FittedEstimator,
-) -> red_support::Result<RedReward<FittedEstimator>> {
-    let sigma1 = r.sigma1();
-    RedReward::with_sigma1(wrap(r.into_model()), sigma1)
-}
-
 /// Fits `method`'s reward on the expert pairs (`(n, obs_dim)`,
 /// `(n, act_dim)`): RED and AE fit their estimator with `rng` and set `σ1`
 /// ([`fit_red_reward`]); GAIL's discriminator is initialised from
@@ -232,16 +222,16 @@ pub fn fit_reward(
         Method::Red => match settings.kernel_pca {
             Some(k) => {
                 let r = fit_red_reward(k, sigma1, scores, states, actions, rng)?;
-                support(as_fitted(r, FittedEstimator::KernelPca)?)
+                support(r.map_model(FittedEstimator::KernelPca))
             }
             None => {
                 let r = fit_red_reward(settings.rnd, sigma1, scores, states, actions, rng)?;
-                support(as_fitted(r, FittedEstimator::Rnd)?)
+                support(r.map_model(FittedEstimator::Rnd))
             }
         },
         Method::Ae => {
             let r = fit_red_reward(settings.autoencoder, sigma1, scores, states, actions, rng)?;
-            support(as_fitted(r, FittedEstimator::Autoencoder)?)
+            support(r.map_model(FittedEstimator::Autoencoder))
         }
         Method::Gail => Some(ImitationReward::Gail(Box::new(Gail::new(
             settings.gail.clone(),

@@ -198,6 +198,27 @@ impl<M: SupportModel> RedReward<M> {
         self.model
     }
 
+    /// The same reward (`σ1`, [`RedReward::states_only`]) over the model
+    /// `f` makes of this one's, e.g. a concrete estimator wrapped into
+    /// [`crate::FittedEstimator`].
+    pub fn map_model<N: SupportModel>(self, f: impl FnOnce(M) -> N) -> RedReward<N> {
+        RedReward {
+            model: f(self.model),
+            sigma1: self.sigma1,
+            states_only: self.states_only,
+        }
+    }
+
+    /// This reward's `σ1` and [`RedReward::states_only`] around another
+    /// model.
+    pub fn with_model<N: SupportModel>(&self, model: N) -> RedReward<N> {
+        RedReward {
+            model,
+            sigma1: self.sigma1,
+            states_only: self.states_only,
+        }
+    }
+
     /// Rewards of a batch, `n` values in `(0, 1]`.
     ///
     /// # Errors

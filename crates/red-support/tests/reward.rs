@@ -334,3 +334,27 @@ fn a_reward_on_states_only_ignores_the_action_and_survives_save_and_load() {
             .contains("states_only")
     );
 }
+
+#[test]
+fn a_reward_moved_onto_another_model_keeps_sigma1_and_the_state_only_flag() {
+    let support = &supports()[2];
+    let (s, a) = support.inside(60, 5);
+    let model = fit(&estimators()[0], &s, &a, 6);
+    let FittedEstimator::Rnd(rnd) = model else {
+        panic!("estimators()[0] is an RND");
+    };
+    for states_only in [false, true] {
+        let plain = RedReward::with_sigma1(rnd.clone(), 3.5)
+            .unwrap()
+            .on_states_only(states_only);
+        let wrapped = plain.clone().map_model(FittedEstimator::Rnd);
+        assert_eq!(wrapped.sigma1(), 3.5);
+        assert_eq!(wrapped.states_only(), states_only);
+        assert_eq!(
+            wrapped.reward(s.view(), a.view()).unwrap(),
+            plain.reward(s.view(), a.view()).unwrap()
+        );
+        let back = wrapped.with_model(rnd.clone());
+        assert_eq!(back, plain);
+    }
+}
