@@ -41,6 +41,25 @@ pub struct InputMap {
     /// the release's, caps none), see [`CappedDim`].
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub capped: Vec<CappedDim>,
+    /// State dimensions read with a weight (our addition; empty, the
+    /// release's, weighs every input alike), see [`WeightedDim`].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub weighted: Vec<WeightedDim>,
+}
+
+/// A state dimension that the estimator reads multiplied by `weight`, after
+/// any cap and standardisation: a weight below 1 makes the support wider
+/// along it (a move along it costs less of the reward), above 1 narrower.
+/// The driving road's lateral position at weight 0.5 says which lane the
+/// demonstrator kept half as loudly as the defaults do, where
+/// `ignored_state_dims` silences it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WeightedDim {
+    /// The state dimension.
+    pub dim: usize,
+    /// Its weight (finite, above 0).
+    pub weight: f64,
 }
 
 /// A state dimension that the estimator reads as `min(v, max)` of its raw
@@ -153,6 +172,7 @@ impl InputMap {
             ignored: Vec::new(),
             periodic: Vec::new(),
             capped: Vec::new(),
+            weighted: Vec::new(),
         })
     }
 
@@ -195,6 +215,31 @@ impl InputMap {
         Ok(self)
     }
 
+    /// The same map with the state dimensions of `dims` weighted
+    /// ([`WeightedDim`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for a dimension at or beyond `obs_dim`, one
+    /// given twice, one that is ignored or periodic (it reads as 0 in its
+    /// place), or a weight that is not finite and above 0.
+    pub fn with_weights(mut self, dims: &[WeightedDim]) -> Result<Self> {
+        check_weights(dims, self.obs_dim)?;
+        if let Some(w) = dims
+            .iter()
+            .find(|w| self.ignored.contains(&w.dim) || self.periodic.iter().any(|p| p.dim == w.dim))
+        {
+            return Err(Error::InvalidConfig {
+                field: "weighted_state_dims".into(),
+                reason: format!(
+                    "state dimension {} is ignored or read by its phase: it has no value to weigh",
+                    w.dim
+                ),
+            });
+        }
+        self.weighted = dims.to_vec();
+        Ok(self)
+    }
+
     /// Length of an input row: `obs_dim + act_dim`, and two more for each
     /// periodic dimension.
     pub fn dim(&self) -> usize {
@@ -218,10 +263,11 @@ impl InputMap {
         let dims = self.periodic.iter().map(|p| p.dim);
         if let Some(d) = dims
             .chain(self.capped.iter().map(|c| c.dim))
+            .chain(self.weighted.iter().map(|w| w.dim))
             .find(|&d| d >= self.obs_dim)
         {
             return Err(Error::InvalidConfig {
-                field: "periodic or capped".into(),
+                field: "periodic, capped or weighted".into(),
                 reason: format!(
                     "state dimension {d} does not exist: states have {} dimensions",
                     self.obs_dim
@@ -238,6 +284,9 @@ impl InputMap {
             }
             for j in 0..o + a {
                 row[j] = (row[j] - self.mean[j]) / self.scale[j];
+            }
+            for w in &self.weighted {
+                row[w.dim] *= w.weight;
             }
             for &j in &self.ignored {
                 row[j] = 0.0;
@@ -353,6 +402,20 @@ pub(crate) fn check_caps(dims: &[CappedDim], obs_dim: usize) -> Result<()> {
     })
 }
 
+/// Refuses a weighted dimension at or beyond `obs_dim`, one given twice,
+/// or a weight that is not finite and above 0.
+pub(crate) fn check_weights(dims: &[WeightedDim], obs_dim: usize) -> Result<()> {
+    let list: Vec<(usize, f64)> = dims.iter().map(|w| (w.dim, w.weight)).collect();
+    check_dim_list(
+        &list,
+        obs_dim,
+        "weighted_state_dims",
+        "weight",
+        "finite and above 0",
+        |v| v.is_finite() && v > 0.0,
+    )
+}
+
 /// Refuses a periodic dimension at or beyond `obs_dim`, one given twice,
 /// or a period that is not finite and above 0.
 pub(crate) fn check_periodic(dims: &[PeriodicDim], obs_dim: usize) -> Result<()> {
@@ -409,6 +472,82 @@ fn concat(states: ArrayView2<'_, f64>, actions: ArrayView2<'_, f64>) -> Array2<f
 mod tests {
     use super::*;
     use ndarray::array;
+
+    #[test]
+    fn a_weighted_dimension_is_scaled_after_standardisation_and_bad_weights_are_refused() {
+        let s = array![[1.0, 5.0, 2.0], [3.0, 7.0, 2.0], [5.0, 9.0, 4.0]];
+        let a = array![[0.0], [1.0], [2.0]];
+        for standardize in [false, true] {
+            let plain = InputMap::fit(s.view(), a.view(), standardize).unwrap();
+            let w = [WeightedDim {
+                dim: 1,
+                weight: 0.5,
+            }];
+            let weighted = plain.clone().with_weights(&w).unwrap();
+            let (x0, x1) = (
+                plain.apply(s.view(), a.view()).unwrap(),
+                weighted.apply(s.view(), a.view()).unwrap(),
+            );
+            for j in 0..4 {
+                let f = if j == 1 { 0.5 } else { 1.0 };
+                for i in 0..3 {
+                    assert_eq!(x1[[i, j]], f * x0[[i, j]], "row {i}, column {j}");
+                }
+            }
+            // The action gradient does not pass through state weights.
+            let g = Array2::ones((3, 4));
+            assert_eq!(plain.action_grad(g.view()), weighted.action_grad(g.view()));
+        }
+        let map = InputMap::fit(s.view(), a.view(), false).unwrap();
+        for (w, what) in [
+            (
+                vec![WeightedDim {
+                    dim: 3,
+                    weight: 1.0,
+                }],
+                "does not exist",
+            ),
+            (
+                vec![WeightedDim {
+                    dim: 0,
+                    weight: 0.0,
+                }],
+                "above 0",
+            ),
+            (
+                vec![WeightedDim {
+                    dim: 0,
+                    weight: f64::NAN,
+                }],
+                "above 0",
+            ),
+            (
+                vec![
+                    WeightedDim {
+                        dim: 0,
+                        weight: 1.0,
+                    },
+                    WeightedDim {
+                        dim: 0,
+                        weight: 2.0,
+                    },
+                ],
+                "twice",
+            ),
+        ] {
+            let e = map.clone().with_weights(&w).unwrap_err().to_string();
+            assert!(e.contains(what), "{e}");
+        }
+        let ignoring = map.clone().ignoring(&[2]).unwrap();
+        let e = ignoring
+            .with_weights(&[WeightedDim {
+                dim: 2,
+                weight: 2.0,
+            }])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no value to weigh"), "{e}");
+    }
 
     #[test]
     fn standardisation_gives_zero_mean_unit_std_and_keeps_constant_dims() {

@@ -50,7 +50,7 @@ pub use cross_val::held_out_scores;
 pub use error::{Error, Result};
 pub use estimator::{FitProgress, SupportEstimatorConfig, SupportModel, no_progress};
 pub use fitted::{EstimatorConfig, FittedEstimator, MODEL_FORMAT, MODEL_VERSION};
-pub use input::{CappedDim, InputMap, PeriodicDim, cap_states};
+pub use input::{CappedDim, InputMap, PeriodicDim, WeightedDim, cap_states};
 pub use kernel_pca::{Bandwidth, Components, KernelKind, KernelPca, KernelPcaConfig};
 pub use reward::{
     ExpertScores, RedReward, RedRewardConfig, Sigma1, calibrate_sigma1, fit_red_reward,

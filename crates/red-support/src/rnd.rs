@@ -18,7 +18,7 @@ use red_nets::{Activation, AdamConfig, FrozenMlp, Init, Mlp, MlpConfig, Tape, Wo
 use serde::{Deserialize, Serialize};
 
 use crate::estimator::{FitProgress, SupportEstimatorConfig, SupportModel};
-use crate::input::{CappedDim, InputMap, PeriodicDim, cap_states};
+use crate::input::{CappedDim, InputMap, PeriodicDim, WeightedDim, cap_states};
 use crate::train::{Regression, fit_regression, to_f32};
 use crate::{Error, Result};
 
@@ -81,6 +81,12 @@ pub struct RndConfig {
     /// the fit and in every score.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub capped_state_dims: Vec<CappedDim>,
+    /// State dimensions the estimator reads with a weight (our addition;
+    /// empty, the release's, weighs every input alike), see
+    /// [`WeightedDim`], in the fit and in every score. A weighted dimension
+    /// may be capped, not ignored or periodic.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub weighted_state_dims: Vec<WeightedDim>,
 }
 
 impl Default for RndConfig {
@@ -106,6 +112,7 @@ impl Default for RndConfig {
             ignored_state_dims: Vec::new(),
             periodic_state_dims: Vec::new(),
             capped_state_dims: Vec::new(),
+            weighted_state_dims: Vec::new(),
         }
     }
 }
@@ -155,6 +162,7 @@ impl RndConfig {
         self.adam.validate().map_err(|e| prefix("adam", e))?;
         crate::input::check_periodic(&self.periodic_state_dims, usize::MAX)?;
         crate::input::check_caps(&self.capped_state_dims, usize::MAX)?;
+        crate::input::check_weights(&self.weighted_state_dims, usize::MAX)?;
         let twice = |field: &str, d: usize| Error::InvalidConfig {
             field: field.into(),
             reason: format!(
@@ -174,6 +182,17 @@ impl RndConfig {
             ignored.contains(&c.dim) || self.periodic_state_dims.iter().any(|p| p.dim == c.dim)
         }) {
             return Err(twice("capped_state_dims", c.dim));
+        }
+        if let Some(w) = self.weighted_state_dims.iter().find(|w| {
+            ignored.contains(&w.dim) || self.periodic_state_dims.iter().any(|p| p.dim == w.dim)
+        }) {
+            return Err(Error::InvalidConfig {
+                field: "weighted_state_dims".into(),
+                reason: format!(
+                    "state dimension {} is also ignored or periodic: it has no value to weigh",
+                    w.dim
+                ),
+            });
         }
         Ok(())
     }
@@ -412,7 +431,8 @@ impl SupportEstimatorConfig for RndConfig {
         let input = InputMap::fit_floored(capped.view(), actions, self.standardize, self.min_std)?
             .ignoring(&self.ignored_state_dims)?
             .with_periodic(&self.periodic_state_dims)?
-            .with_caps(&self.capped_state_dims)?;
+            .with_caps(&self.capped_state_dims)?
+            .with_weights(&self.weighted_state_dims)?;
         let x = to_f32(input.apply(states, actions)?.view());
         let d = input.dim();
         let mut pairs = Vec::with_capacity(self.ensemble);
@@ -629,6 +649,56 @@ mod tests {
                 e.to_string().contains("state dimension 2 also stands"),
                 "{e}"
             );
+        }
+    }
+
+    #[test]
+    fn a_weighted_dim_reads_as_the_state_scaled_by_its_weight() {
+        let (s, a) = data(64, 1);
+        let weighted = RndConfig {
+            weighted_state_dims: vec![WeightedDim {
+                dim: 1,
+                weight: 0.5,
+            }],
+            ..small()
+        };
+        // Without standardisation a weight is the same fit as the states
+        // scaled by it beforehand.
+        let mut halved = s.clone();
+        halved.column_mut(1).mapv_inplace(|v| 0.5 * v);
+        let (m1, m2) = (
+            fit_seed2(&weighted, &s, &a),
+            fit_seed2(&small(), &halved, &a),
+        );
+        let mut probe = s.clone();
+        probe.column_mut(1).mapv_inplace(|v| v + 1.0);
+        let mut probe_halved = probe.clone();
+        probe_halved.column_mut(1).mapv_inplace(|v| 0.5 * v);
+        assert_eq!(
+            m1.score(probe.view(), a.view()).unwrap(),
+            m2.score(probe_halved.view(), a.view()).unwrap()
+        );
+        assert_ne!(
+            m1.score(probe.view(), a.view()).unwrap(),
+            fit_seed2(&small(), &s, &a)
+                .score(probe.view(), a.view())
+                .unwrap()
+        );
+        for cfg in [
+            RndConfig {
+                ignored_state_dims: vec![1],
+                ..weighted.clone()
+            },
+            RndConfig {
+                periodic_state_dims: vec![PeriodicDim {
+                    dim: 1,
+                    period: 1.0,
+                }],
+                ..weighted.clone()
+            },
+        ] {
+            let e = cfg.validate().unwrap_err();
+            assert!(e.to_string().contains("no value to weigh"), "{e}");
         }
     }
 
