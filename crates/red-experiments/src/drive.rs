@@ -1114,12 +1114,7 @@ mod stored_reward {
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<ImitationReward, D::Error> {
         // A file edited by hand is read with the check a fitted reward had.
         let support = |r: RedReward<FittedEstimator>| {
-            let sigma1 = r.sigma1();
-            if !(sigma1.is_finite() && sigma1 > 0.0) {
-                return Err(D::Error::custom(format!(
-                    "the reward's sigma1 must be finite and > 0, got {sigma1}"
-                )));
-            }
+            r.check().map_err(D::Error::custom)?;
             Ok(ImitationReward::Support(Box::new(r)))
         };
         match Stored::deserialize(d)? {
@@ -3413,6 +3408,24 @@ mod tests {
         .err()
         .unwrap();
         assert!(e.to_string().contains("reward_on_states"), "{e}");
+        // A checkpoint keeps the flag; one whose sigma1 was edited to 0 is
+        // refused with the field named.
+        #[derive(Serialize, Deserialize)]
+        struct Wrapped {
+            #[serde(with = "stored_reward")]
+            reward: ImitationReward,
+        }
+        let json = serde_json::to_value(Wrapped { reward }).unwrap();
+        let back: Wrapped = serde_json::from_value(json.clone()).unwrap();
+        assert!(back.reward.support().unwrap().states_only());
+        assert_eq!(
+            back.reward.reward_and_grad(es.view(), ea.view()).unwrap(),
+            (v, g)
+        );
+        let mut bad = json;
+        bad["reward"]["Red"]["sigma1"] = serde_json::json!(0.0);
+        let e = serde_json::from_value::<Wrapped>(bad).err().unwrap();
+        assert!(e.to_string().contains("sigma1"), "{e}");
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! The estimators' input: the concatenation `x = [s, a]`, checked, and
 //! optionally standardised with the expert statistics; state dimensions
-//! may be left out, capped, or read by their phase (two more columns after
-//! the action).
+//! may be left out, capped, weighted, or read by their phase (two more
+//! columns after the action).
 
 use ndarray::{Array1, Array2, ArrayView2, Axis, s};
 use serde::{Deserialize, Serialize};
@@ -13,8 +13,9 @@ use crate::{Error, Result};
 const MIN_STD: f64 = 1e-8;
 
 /// Maps state-action batches to the estimator's input rows `[s, a]`,
-/// standardised per dimension when fitted with `standardize = true`, then
-/// the two phase columns of each periodic dimension (never standardised).
+/// standardised per dimension when fitted with `standardize = true` (after
+/// any caps), then weighted ([`WeightedDim`]), then the two phase columns
+/// of each periodic dimension (never standardised).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InputMap {
@@ -50,9 +51,9 @@ pub struct InputMap {
 /// A state dimension that the estimator reads multiplied by `weight`, after
 /// any cap and standardisation: a weight below 1 makes the support wider
 /// along it (a move along it costs less of the reward), above 1 narrower.
-/// The driving road's lateral position at weight 0.5 says which lane the
-/// demonstrator kept half as loudly as the defaults do, where
-/// `ignored_state_dims` silences it.
+/// A weight of 0.5 on the driving road's lateral position halves how far
+/// a change of lane reads from the demonstration (`ignored_state_dims`
+/// would make it read as no change at all).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct WeightedDim {
@@ -494,9 +495,6 @@ mod tests {
                     assert_eq!(x1[[i, j]], f * x0[[i, j]], "row {i}, column {j}");
                 }
             }
-            // The action gradient does not pass through state weights.
-            let g = Array2::ones((3, 4));
-            assert_eq!(plain.action_grad(g.view()), weighted.action_grad(g.view()));
         }
         let map = InputMap::fit(s.view(), a.view(), false).unwrap();
         for (w, what) in [
@@ -538,6 +536,32 @@ mod tests {
             let e = map.clone().with_weights(&w).unwrap_err().to_string();
             assert!(e.contains(what), "{e}");
         }
+        for bad in [-1.0, f64::INFINITY] {
+            let e = map
+                .clone()
+                .with_weights(&[WeightedDim {
+                    dim: 0,
+                    weight: bad,
+                }])
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("above 0"), "{e}");
+        }
+        let periodic = map
+            .clone()
+            .with_periodic(&[PeriodicDim {
+                dim: 2,
+                period: 1.0,
+            }])
+            .unwrap();
+        let e = periodic
+            .with_weights(&[WeightedDim {
+                dim: 2,
+                weight: 2.0,
+            }])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no value to weigh"), "{e}");
         let ignoring = map.clone().ignoring(&[2]).unwrap();
         let e = ignoring
             .with_weights(&[WeightedDim {

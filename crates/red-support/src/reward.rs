@@ -198,6 +198,18 @@ impl<M: SupportModel> RedReward<M> {
         self.model
     }
 
+    /// Checks `σ1` as [`RedReward::with_sigma1`] does: for a reward read
+    /// from a file.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] if `σ1` is not finite and positive.
+    pub fn check(&self) -> Result<()> {
+        RedRewardConfig {
+            sigma1: Sigma1::Fixed(self.sigma1),
+        }
+        .validate()
+    }
+
     /// The same reward (`σ1`, [`RedReward::states_only`]) over the model
     /// `f` makes of this one's, e.g. a concrete estimator wrapped into
     /// [`crate::FittedEstimator`].
