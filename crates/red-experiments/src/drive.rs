@@ -1082,7 +1082,6 @@ mod stored_reward {
     use red_rl::gail::Gail;
     use red_rl::gmmil::Gmmil;
     use red_support::{Autoencoder, FittedEstimator, KernelPca, RedReward, Rnd};
-    use serde::de::Error as _;
     use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
     use crate::imitation::ImitationReward;
@@ -1112,11 +1111,7 @@ mod stored_reward {
     }
 
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<ImitationReward, D::Error> {
-        // A file edited by hand is read with the check a fitted reward had.
-        let support = |r: RedReward<FittedEstimator>| {
-            r.check().map_err(D::Error::custom)?;
-            Ok(ImitationReward::Support(Box::new(r)))
-        };
+        let support = |r: RedReward<FittedEstimator>| Ok(ImitationReward::Support(Box::new(r)));
         match Stored::deserialize(d)? {
             Stored::Red(r) => support(r.map_model(FittedEstimator::Rnd)),
             Stored::Ae(r) => support(r.map_model(FittedEstimator::Autoencoder)),

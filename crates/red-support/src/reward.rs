@@ -104,8 +104,11 @@ impl RedRewardConfig {
 ///
 /// Rewards are in `(0, 1]` up to floating point: a score so large that
 /// `exp` underflows gives 0.
+///
+/// A reward read from a file is checked as [`RedReward::with_sigma1`]
+/// checks a new one: `σ1` finite and above 0.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, try_from = "RedRewardFile<M>")]
 pub struct RedReward<M> {
     model: M,
     sigma1: f64,
@@ -113,6 +116,32 @@ pub struct RedReward<M> {
     /// [`RedReward::on_states_only`]).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     states_only: bool,
+}
+
+/// [`RedReward`] as a file holds it, before its check.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RedRewardFile<M> {
+    model: M,
+    sigma1: f64,
+    #[serde(default)]
+    states_only: bool,
+}
+
+impl<M> TryFrom<RedRewardFile<M>> for RedReward<M> {
+    type Error = Error;
+
+    fn try_from(f: RedRewardFile<M>) -> Result<Self> {
+        RedRewardConfig {
+            sigma1: Sigma1::Fixed(f.sigma1),
+        }
+        .validate()?;
+        Ok(Self {
+            model: f.model,
+            sigma1: f.sigma1,
+            states_only: f.states_only,
+        })
+    }
 }
 
 impl<M: SupportModel> RedReward<M> {
@@ -196,18 +225,6 @@ impl<M: SupportModel> RedReward<M> {
     /// Unwraps the support model.
     pub fn into_model(self) -> M {
         self.model
-    }
-
-    /// Checks `σ1` as [`RedReward::with_sigma1`] does: for a reward read
-    /// from a file.
-    ///
-    /// # Errors
-    /// [`Error::InvalidConfig`] if `σ1` is not finite and positive.
-    pub fn check(&self) -> Result<()> {
-        RedRewardConfig {
-            sigma1: Sigma1::Fixed(self.sigma1),
-        }
-        .validate()
     }
 
     /// The same reward (`σ1`, [`RedReward::states_only`]) over the model

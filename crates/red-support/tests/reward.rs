@@ -357,4 +357,14 @@ fn a_reward_moved_onto_another_model_keeps_sigma1_and_the_state_only_flag() {
         let back = wrapped.with_model(rnd.clone());
         assert_eq!(back, plain);
     }
+    // A file whose sigma1 was edited to a bad value is refused on reading.
+    let plain = RedReward::with_sigma1(rnd, 3.5).unwrap();
+    let mut json = serde_json::to_value(&plain).unwrap();
+    for bad in [0.0, -1.0] {
+        json["sigma1"] = serde_json::json!(bad);
+        let e = serde_json::from_value::<RedReward<red_support::Rnd>>(json.clone())
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("sigma1"), "{e}");
+    }
 }
