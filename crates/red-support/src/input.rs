@@ -554,23 +554,17 @@ mod tests {
                 period: 1.0,
             }])
             .unwrap();
-        let e = periodic
-            .with_weights(&[WeightedDim {
-                dim: 2,
-                weight: 2.0,
-            }])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("no value to weigh"), "{e}");
         let ignoring = map.clone().ignoring(&[2]).unwrap();
-        let e = ignoring
-            .with_weights(&[WeightedDim {
-                dim: 2,
-                weight: 2.0,
-            }])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("no value to weigh"), "{e}");
+        for no_value in [periodic, ignoring] {
+            let e = no_value
+                .with_weights(&[WeightedDim {
+                    dim: 2,
+                    weight: 2.0,
+                }])
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("no value to weigh"), "{e}");
+        }
     }
 
     #[test]
