@@ -1,7 +1,8 @@
 //! Diagnosis: how a saved final RED policy starts. For each road (track
 //! seed) and reset seed given, the start (lateral offset in m, heading in
 //! rad, speed in km/h), the distance driven, and every 4th step of the
-//! first STEPS (80 by default) as `y/steer/pedal`. `TRACE_RAYS=1` adds the
+//! first STEPS (80 by default) as `y/steer/pedal` (`TRACE_EVERY=N`: every
+//! Nth step instead). `TRACE_RAYS=1` adds the
 //! start's lidar rays 6-13 (the fan's middle; ray 10 points 0.25 degrees
 //! left of the heading, ray 9 as far right), as fractions of the range.
 //! `cargo run --release -p red-experiments --example drive_trace --
@@ -29,6 +30,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(s) => s.parse()?,
         None => 80,
     };
+    let every: usize = match std::env::var("TRACE_EVERY") {
+        Ok(s) => s.parse::<usize>()?.max(1),
+        Err(_) => 4,
+    };
     let (run, policy) = load_run_policy(&dir, "red", false)?;
     for &road in &roads {
         let cfg = DriveConfig {
@@ -51,7 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 println!("   start rays 6-13: {}", rays.join(" "));
             }
             let mut line = String::new();
-            for i in (0..t.observations.len().min(steps)).step_by(4) {
+            for i in (0..t.observations.len().min(steps)).step_by(every) {
                 let o = &t.observations[i];
                 let a = &t.actions[i];
                 line.push_str(&format!("{:+.1}/{:+.2}/{:+.2} ", o[20] * hw, a[0], a[1]));

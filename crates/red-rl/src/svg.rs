@@ -130,6 +130,15 @@ pub struct SvgConfig {
     /// is the conditional one, so the importance weights correct for it.
     /// 0: white noise.
     pub noise_rho: f64,
+    /// Weight of a temporal smoothness term (our addition, after Mysore et
+    /// al. 2021, "Regularizing Action Policies for Smooth Control with
+    /// Reinforcement Learning"): `smooth_weight * mean ||mu(s) - mu(s')||^2`
+    /// over the policy batch's replayed transitions `(s, s')` that did not
+    /// end the episode, added to the policy loss (the batch's ending
+    /// transitions count in the mean as 0). It charges a policy whose mean
+    /// action jumps between consecutive states, as one that chatters
+    /// does. 0: off.
+    pub smooth_weight: f64,
     /// Weight of a self-imitation term (our addition, after Oh et al.
     /// 2018, "Self-Imitation Learning"): the learner keeps its
     /// `sil_episodes` training episodes of highest own return (the
@@ -189,6 +198,7 @@ impl Default for SvgConfig {
             importance_weights: true,
             bc_weight: 0.0,
             noise_rho: 0.0,
+            smooth_weight: 0.0,
             sil_weight: 0.0,
             sil_episodes: 4,
             value_nstep: 1,
@@ -274,6 +284,12 @@ impl SvgConfig {
             return bad(
                 "bc_weight",
                 format!("must be finite and >= 0, got {}", self.bc_weight),
+            );
+        }
+        if !(self.smooth_weight.is_finite() && self.smooth_weight >= 0.0) {
+            return bad(
+                "smooth_weight",
+                format!("must be finite and >= 0, got {}", self.smooth_weight),
             );
         }
         if !(self.sil_weight.is_finite() && self.sil_weight >= 0.0) {
@@ -941,6 +957,9 @@ impl Svg1 {
             self.policy
                 .backward_params(&tape, &dist, d_mean.view(), d_ls.view(), &mut grads);
         }
+        if self.config.smooth_weight > 0.0 {
+            self.add_smoothness_grad(batch, &mut grads)?;
+        }
         clip_grad_norm(&mut grads, self.config.max_grad_norm);
         if let Some(lr1) = self.config.policy_lr_final {
             let start = self.config.learning_starts + self.config.policy_delay;
@@ -967,6 +986,38 @@ impl Svg1 {
             }
         }
         Ok(obj)
+    }
+
+    /// Adds to `grads` the gradient of the temporal smoothness term
+    /// (`smooth_weight`) on `batch`'s transitions that did not end the
+    /// episode.
+    fn add_smoothness_grad(&self, batch: &SvgBatch, grads: &mut Gradients) -> Result<()> {
+        let live: Vec<usize> = (0..batch.terminated.len())
+            .filter(|&i| !batch.terminated[i])
+            .collect();
+        if live.is_empty() {
+            return Ok(());
+        }
+        let x = self
+            .policy
+            .prepare_obs(batch.states.select(Axis(0), &live).view())?;
+        let x_next = self
+            .policy
+            .prepare_obs(batch.next_states.select(Axis(0), &live).view())?;
+        let (mut tape, mut tape_next) = (Tape::new(), Tape::new());
+        let dist = self.policy.distribution_tape(x.view(), &mut tape)?;
+        let dist_next = self
+            .policy
+            .distribution_tape(x_next.view(), &mut tape_next)?;
+        let w = 2.0 * self.config.smooth_weight / batch.states.nrows() as f64;
+        let d_mean = (&dist.mean - &dist_next.mean).mapv(|v| w * v);
+        let d_ls = Array2::<f64>::zeros(d_mean.raw_dim());
+        self.policy
+            .backward_params(&tape, &dist, d_mean.view(), d_ls.view(), grads);
+        let d_next = d_mean.mapv(|v| -v);
+        self.policy
+            .backward_params(&tape_next, &dist_next, d_next.view(), d_ls.view(), grads);
+        Ok(())
     }
 
     /// One round of updates (model, value, and the policy when
