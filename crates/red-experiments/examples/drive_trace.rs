@@ -2,7 +2,7 @@
 //! seed) and reset seed given, the start (lateral offset in m, heading in
 //! rad, speed in km/h), the distance driven, and every 4th step of the
 //! first STEPS (80 by default) as `y/steer/pedal` (`TRACE_EVERY=N`: every
-//! Nth step instead). `TRACE_RAYS=1` adds the
+//! Nth step instead; 0 reads as 1). `TRACE_RAYS=1` adds the
 //! start's lidar rays 6-13 (the fan's middle; ray 10 points 0.25 degrees
 //! left of the heading, ray 9 as far right), as fractions of the range.
 //! `cargo run --release -p red-experiments --example drive_trace --
@@ -31,7 +31,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         None => 80,
     };
     let every: usize = match std::env::var("TRACE_EVERY") {
-        Ok(s) => s.parse::<usize>()?.max(1),
+        Ok(s) => s
+            .parse::<usize>()
+            .map_err(|e| format!("TRACE_EVERY={s}: {e} (give a whole number >= 1)"))?
+            .max(1),
         Err(_) => 4,
     };
     let (run, policy) = load_run_policy(&dir, "red", false)?;

@@ -48,6 +48,11 @@ use crate::{Error, Result};
 // SVG(1) users have always found it.
 pub use red_core::DifferentiableReward;
 
+/// Whether a weight is 0 (a setting that is off is not written).
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
 /// Settings of [`Svg1`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -133,11 +138,13 @@ pub struct SvgConfig {
     /// Weight of a temporal smoothness term (our addition, after Mysore et
     /// al. 2021, "Regularizing Action Policies for Smooth Control with
     /// Reinforcement Learning"): `smooth_weight * mean ||mu(s) - mu(s')||^2`
-    /// over the policy batch's replayed transitions `(s, s')` that did not
-    /// end the episode, added to the policy loss (the batch's ending
-    /// transitions count in the mean as 0). It charges a policy whose mean
-    /// action jumps between consecutive states, as one that chatters
-    /// does. 0: off.
+    /// over the policy batch's replayed transitions `(s, s')`, added to
+    /// the policy loss. Transitions into a terminal state count in the mean
+    /// as 0; those cut by a time limit count, `s'` being the last
+    /// observation. It charges a policy whose mean action jumps between
+    /// consecutive states, as one that chatters does. 0: off (and not
+    /// written, so files of runs without it read in builds before it).
+    #[serde(skip_serializing_if = "is_zero")]
     pub smooth_weight: f64,
     /// Weight of a self-imitation term (our addition, after Oh et al.
     /// 2018, "Self-Imitation Learning"): the learner keeps its
@@ -989,8 +996,8 @@ impl Svg1 {
     }
 
     /// Adds to `grads` the gradient of the temporal smoothness term
-    /// (`smooth_weight`) on `batch`'s transitions that did not end the
-    /// episode.
+    /// (`smooth_weight`) on `batch`'s transitions not into a terminal
+    /// state.
     fn add_smoothness_grad(&self, batch: &SvgBatch, grads: &mut Gradients) -> Result<()> {
         let live: Vec<usize> = (0..batch.terminated.len())
             .filter(|&i| !batch.terminated[i])
