@@ -353,6 +353,30 @@ pub struct DriveTrainConfig {
     /// it (runs made before session 45) means the hard clip they used.
     #[serde(default)]
     pub policy_obs_soft_tails: bool,
+    /// Floors on the policy normaliser's standard deviation for single
+    /// inputs, each replacing `policy_obs_min_std` where larger (our
+    /// setting, none by default). The inputs are those of
+    /// [`red_drive::DriveEnv`]'s observation: 0-19 the lidar, 20 the
+    /// lateral position, 21 the heading, 22 the margin to the nearer wall,
+    /// 23 the speed. A demonstrator who keeps one lane (s37: lateral
+    /// standard deviation 0.095 of the half-width, against 0.30-0.34 for
+    /// the other demos) makes the lateral input read a lane away at 7
+    /// standard deviations; a floor of 1/3 (half a lane) reads it at 2,
+    /// as for a demonstrator who uses every lane, and leaves the lidar's
+    /// fine reading alone (session 44's common floor of 0.1 coarsened it).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub policy_obs_dim_floors: Vec<DimFloor>,
+}
+
+/// A floor on the standard deviation by which the policy's input
+/// normaliser divides one input ([`DriveTrainConfig::policy_obs_dim_floors`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DimFloor {
+    /// The observation's input (0-23).
+    pub dim: usize,
+    /// Its floor, finite and > 0, in the observation's units.
+    pub min_std: f64,
 }
 
 /// Where and how often training episodes restart before earlier crashes
@@ -546,6 +570,7 @@ impl Default for DriveTrainConfig {
             crash_restarts: None,
             policy_obs_min_std: policy_obs_min_std_before_44(),
             policy_obs_soft_tails: true,
+            policy_obs_dim_floors: Vec::new(),
         }
     }
 }
@@ -686,6 +711,34 @@ impl DriveTrainConfig {
                 "train.policy_obs_min_std",
                 format!("must be finite and > 0, got {f}"),
             ));
+        }
+        for (i, d) in self.policy_obs_dim_floors.iter().enumerate() {
+            let field = format!("train.policy_obs_dim_floors[{i}]");
+            if d.dim >= OBS_DIM {
+                return Err(invalid(
+                    &field,
+                    format!(
+                        "dim {} is out of range: the observation has inputs 0-{}",
+                        d.dim,
+                        OBS_DIM - 1
+                    ),
+                ));
+            }
+            if !(d.min_std.is_finite() && d.min_std > 0.0) {
+                return Err(invalid(
+                    &field,
+                    format!("min_std must be finite and > 0, got {}", d.min_std),
+                ));
+            }
+            if self.policy_obs_dim_floors[..i]
+                .iter()
+                .any(|o| o.dim == d.dim)
+            {
+                return Err(invalid(
+                    &field,
+                    format!("dim {} is given twice: keep one floor per input", d.dim),
+                ));
+            }
         }
         self.gail.validate().with_context(|| "train.gail")?;
         self.gmmil.validate().with_context(|| "train.gmmil")?;
@@ -2413,14 +2466,21 @@ impl DriveOutcome {
 /// The policy's input normaliser: the demonstration states' mean and
 /// standard deviation (floored at `train.policy_obs_min_std`), frozen by
 /// [`ObsNormalizer::from_data`], clipping at ±5 (the release's), with
-/// logarithmic tails beyond it when `train.policy_obs_soft_tails`.
+/// logarithmic tails beyond it when `train.policy_obs_soft_tails`, and any
+/// per-input floors of `train.policy_obs_dim_floors`.
 fn policy_normalizer(
     train: &DriveTrainConfig,
     states: ArrayView2<'_, f64>,
 ) -> Result<ObsNormalizer> {
+    let floors: Vec<(usize, f64)> = train
+        .policy_obs_dim_floors
+        .iter()
+        .map(|d| (d.dim, d.min_std))
+        .collect();
     Ok(
         ObsNormalizer::from_data(states, DEFAULT_CLIP, train.policy_obs_min_std)?
-            .with_soft_tails(train.policy_obs_soft_tails),
+            .with_soft_tails(train.policy_obs_soft_tails)
+            .with_dim_floors(&floors)?,
     )
 }
 
@@ -3223,6 +3283,58 @@ mod tests {
             cfg.policy_obs_min_std = bad;
             let e = cfg.validate().unwrap_err().to_string();
             assert!(e.contains("policy_obs_min_std"), "{e}");
+        }
+    }
+
+    #[test]
+    fn per_input_floors_reach_the_policy_normaliser_and_are_checked() {
+        let mut cfg = DriveTrainConfig::default();
+        assert!(
+            !serde_json::to_string(&cfg)
+                .unwrap()
+                .contains("policy_obs_dim_floors"),
+            "none by default, not written"
+        );
+        cfg = crate::run_dir::overlay_json(
+            &cfg,
+            r#"{"policy_obs_dim_floors":[{"dim":20,"min_std":0.3333}]}"#,
+            Path::new("c.json"),
+        )
+        .unwrap();
+        cfg.validate().unwrap();
+        // s37-like states: the lateral input (20) barely moves, a lidar ray
+        // (0) does; the ray keeps its own spread.
+        let mut states = Array2::<f64>::zeros((2, OBS_DIM));
+        states[[0, 20]] = 0.6;
+        states[[1, 20]] = 0.8;
+        states[[0, 0]] = 0.2;
+        states[[1, 0]] = 0.22;
+        let n = policy_normalizer(&cfg, states.view()).unwrap();
+        let stds = n.stds();
+        assert!((stds[20] - 0.3333).abs() < 1e-12, "{stds:?}");
+        assert!((stds[0] - 0.01).abs() < 1e-12, "{stds:?}");
+        let back: DriveTrainConfig =
+            serde_json::from_str(&serde_json::to_string(&cfg).unwrap()).unwrap();
+        assert_eq!(back.policy_obs_dim_floors, cfg.policy_obs_dim_floors);
+        for (bad, what) in [
+            (r#"[{"dim":24,"min_std":0.3}]"#, "out of range"),
+            (r#"[{"dim":20,"min_std":0}]"#, "min_std"),
+            (
+                r#"[{"dim":20,"min_std":0.3},{"dim":20,"min_std":0.2}]"#,
+                "twice",
+            ),
+        ] {
+            let c = crate::run_dir::overlay_json(
+                &DriveTrainConfig::default(),
+                &format!(r#"{{"policy_obs_dim_floors":{bad}}}"#),
+                Path::new("c.json"),
+            )
+            .unwrap();
+            let e = c.validate().unwrap_err().to_string();
+            assert!(
+                e.contains("policy_obs_dim_floors") && e.contains(what),
+                "{e}"
+            );
         }
     }
 

@@ -40,6 +40,11 @@ pub struct ObsNormalizer {
     /// files written before it existed: a hard clip.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     soft_tails: bool,
+    /// Per-dimension floors on the standard deviation that replace
+    /// `min_std` where they are larger (0 where none was set); empty when
+    /// none was set, as in files written before they existed.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    dim_floors: Vec<f64>,
 }
 
 /// The release's clip of normalised observations, `+-5`.
@@ -85,6 +90,7 @@ impl ObsNormalizer {
             min_std,
             frozen: false,
             soft_tails: false,
+            dim_floors: Vec::new(),
         })
     }
 
@@ -98,6 +104,43 @@ impl ObsNormalizer {
     pub fn with_soft_tails(mut self, on: bool) -> Self {
         self.soft_tails = on;
         self
+    }
+
+    /// The same statistics with the standard deviation of dimension `dim`
+    /// floored at `min_std` instead of the common floor, for each
+    /// `(dim, min_std)` of `floors` whose floor is the larger: an input the
+    /// data held nearly constant can be given a physical scale (the
+    /// driving road's lateral position, half a lane) without coarsening the
+    /// others. A later pair for the same dimension replaces an earlier one.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] for a dimension out of range or a floor
+    /// that is not positive and finite.
+    pub fn with_dim_floors(mut self, floors: &[(usize, f64)]) -> Result<Self> {
+        for &(dim, floor) in floors {
+            if dim >= self.dim() {
+                return Err(Error::InvalidConfig {
+                    field: "dim_floors".into(),
+                    reason: format!(
+                        "dimension {dim} is out of range: inputs have {}",
+                        self.dim()
+                    ),
+                });
+            }
+            if !floor.is_finite() || floor <= 0.0 {
+                return Err(Error::InvalidConfig {
+                    field: "dim_floors".into(),
+                    reason: format!(
+                        "the floor of dimension {dim} must be positive and finite, got {floor}"
+                    ),
+                });
+            }
+            if self.dim_floors.is_empty() {
+                self.dim_floors = vec![0.0; self.dim()];
+            }
+            self.dim_floors[dim] = floor;
+        }
+        Ok(self)
     }
 
     /// Whether the tails beyond `clip` are logarithmic rather than clipped.
@@ -248,7 +291,11 @@ impl ObsNormalizer {
 
     #[inline]
     fn std(&self, j: usize) -> f64 {
-        self.var[j].sqrt().max(self.min_std)
+        let floor = match self.dim_floors.get(j) {
+            Some(&f) => f.max(self.min_std),
+            None => self.min_std,
+        };
+        self.var[j].sqrt().max(floor)
     }
 
     /// Stops later updates.
@@ -323,6 +370,47 @@ mod tests {
         }
         let b = n.normalize_batch(data.view()).unwrap();
         assert!(b.iter().all(|v| v.abs() <= 5.0));
+    }
+
+    #[test]
+    fn a_dimension_floor_replaces_the_common_floor_where_larger() {
+        // Stds 1, 0.05 and 0 (constant); common floor 0.01.
+        let data = array![[0.0, 0.45, 2.0], [2.0, 0.55, 2.0]];
+        let n = ObsNormalizer::from_data(data.view(), 5.0, 0.01).unwrap();
+        let plain = n.stds();
+        let n = n
+            .with_dim_floors(&[(1, 0.25), (2, 0.001), (0, 0.5)])
+            .unwrap();
+        assert_eq!(n.stds(), vec![1.0, 0.25, 0.01], "was {plain:?}");
+        let mut out = [0f32; 3];
+        n.normalize_into(&[1.0, 1.0, 2.0], &mut out).unwrap();
+        assert!((out[1] - 2.0).abs() < 1e-6, "{out:?}");
+        // Backward divides by the floored std too.
+        let g = n
+            .backward(
+                array![[1.0, 0.6, 2.0]].view(),
+                array![[1.0f32, 1.0, 0.0]].view(),
+            )
+            .unwrap();
+        assert!((g[[0, 1]] - 4.0).abs() < 1e-9, "{g:?}");
+        // Kept through a file; files without floors read as before.
+        let back: ObsNormalizer =
+            serde_json::from_str(&serde_json::to_string(&n).unwrap()).unwrap();
+        assert_eq!(back, n);
+        let none = ObsNormalizer::from_data(data.view(), 5.0, 0.01).unwrap();
+        assert!(!serde_json::to_string(&none).unwrap().contains("dim_floors"));
+        for (bad, what) in [
+            ((3, 0.1), "out of range"),
+            ((0, 0.0), "positive"),
+            ((0, f64::NAN), "positive"),
+        ] {
+            let e = none
+                .clone()
+                .with_dim_floors(&[bad])
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(what), "{e}");
+        }
     }
 
     #[test]
