@@ -2,15 +2,27 @@
 """drive_runs_csv.py RUNS_DIR NAME...: one CSV row per finished run RUNS_DIR/NAME-DEMO-sK
 (DEMO: scripted, s11, s23, s37; made by `red-cli drive --demo D --methods red --seed K --name
 NAME-DEMO-sK --out-dir RUNS_DIR --train-config C`): RED's final policy's % of the demo's road
-and of the unseen roads (5 deterministic starts per road, from eval.json), and the same for
-the policy selected by RED's own reward, as the docs/results/drive/sNN-*-runs.csv files hold
-them. Runs not finished yet (no eval.json) are left out with a note on stderr."""
+and of the unseen roads (the run's deterministic evaluation starts per road, 5 by default,
+from eval.json), and the same for the policy selected by RED's own reward, as the
+docs/results/drive/sNN-*-runs.csv files hold them; `-` where the run has no such number (no
+selection checks, no unseen roads). Runs not finished yet (no eval.json) or without RED are
+left out with a note on stderr."""
 import json, os, re, sys
 
 if len(sys.argv) < 3:
     sys.exit(__doc__)
 root, names = sys.argv[1], sys.argv[2:]
 order = {"scripted": 0, "s11": 1, "s23": 2, "s37": 3}
+
+
+def pct(p, key):
+    """The % of the demo's road (key "road") or of the unseen roads of one policy's entry."""
+    if p is None:
+        return None
+    if key == "road":
+        return p["percent_of_road"]
+    u = p.get("unseen_roads")
+    return None if u is None else u["percent_of_road"]
 print("setting,demo,seed,final_demo_road_pct,final_unseen_pct,selected_demo_road_pct,selected_unseen_pct")
 for name in names:
     rows = []
@@ -22,10 +34,12 @@ for name in names:
         if not os.path.isfile(path):
             print(f"# {d}: no eval.json yet, left out", file=sys.stderr)
             continue
-        red = [x for x in json.load(open(path))["methods"] if x["method"] == "red"][0]
-        f, s = red["final_policy"], red["selected_by_own_reward"]
+        red = [x for x in json.load(open(path))["methods"] if x["method"] == "red"]
+        if not red:
+            print(f"# {d}: no RED in eval.json, left out", file=sys.stderr)
+            continue
+        f, s = red[0].get("final_policy"), red[0].get("selected_by_own_reward")
         rows.append((order.get(m.group(1), 9), m.group(1), int(m.group(2)),
-                     f["percent_of_road"], f["unseen_roads"]["percent_of_road"],
-                     s["percent_of_road"], s["unseen_roads"]["percent_of_road"]))
-    for _, demo, seed, a, b, c, e in sorted(rows):
-        print(f"{name},{demo},{seed},{a:.1f},{b:.1f},{c:.1f},{e:.1f}")
+                     pct(f, "road"), pct(f, "unseen"), pct(s, "road"), pct(s, "unseen")))
+    for _, demo, seed, *v in sorted(rows):
+        print(f"{name},{demo},{seed}," + ",".join("-" if x is None else f"{x:.1f}" for x in v))

@@ -1,6 +1,7 @@
 //! Diagnosis: how strongly a saved final RED policy's steering responds to
 //! each of its 24 inputs. For each input: the demonstration's standard
-//! deviation (the policy normaliser's, before any floor), the divisor the
+//! deviation (the policy normaliser's, before any floor; over the demo's
+//! states and their mirror images when the run mirrored them), the divisor the
 //! normaliser uses (after the floors), and the median over states of
 //! |d steer / d input| (the mean action's steering, per unit of the raw
 //! observation, by a central difference of 1e-3), over the states the

@@ -32,7 +32,8 @@ pub fn check_policy(
 }
 
 /// An observation normaliser: a finite non-negative count, finite means,
-/// finite non-negative variances.
+/// finite non-negative variances, and per-input floors that are either
+/// absent or one finite non-negative value per input.
 ///
 /// # Errors
 /// The first bad value, naming `what` and its column.
@@ -59,6 +60,23 @@ pub fn check_normalizer(what: &str, n: &ObsNormalizer) -> std::result::Result<()
              negative"
         ));
     }
+    let floors = n.dim_floors();
+    if !floors.is_empty() && floors.len() != n.dim() {
+        return Err(format!(
+            "{what}: the observation normaliser has {} per-input floors for {} inputs",
+            floors.len(),
+            n.dim()
+        ));
+    }
+    if let Some((j, v)) = floors
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+    {
+        return Err(format!(
+            "{what}: the observation normaliser's floor[{j}] is {v}; a floor is finite and              never negative"
+        ));
+    }
     Ok(())
 }
 
@@ -73,4 +91,30 @@ pub fn check_steps(what: &str, done: u64, budget: u64) -> std::result::Result<()
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_saved_normaliser_with_wrong_floors_is_refused() {
+        let data = ndarray::array![[0.0, 1.0], [1.0, 1.0]];
+        let good = ObsNormalizer::from_data(data.view(), 5.0, 0.01)
+            .unwrap()
+            .with_dim_floors(&[(1, 0.3)])
+            .unwrap();
+        check_normalizer("p", &good).unwrap();
+        let text = serde_json::to_string(&good).unwrap();
+        assert!(text.contains(r#""dim_floors":[0.0,0.3]"#), "{text}");
+        for (bad, want) in [
+            ("[0.3]", "1 per-input floors for 2 inputs"),
+            ("[0.0,-0.3]", "floor[1] is -0.3"),
+        ] {
+            let edited = text.replace("[0.0,0.3]", bad);
+            let n: ObsNormalizer = serde_json::from_str(&edited).unwrap();
+            let e = check_normalizer("p", &n).unwrap_err();
+            assert!(e.contains(want), "{e}");
+        }
+    }
 }

@@ -1,7 +1,9 @@
 //! Running mean / standard-deviation normalisation of observations, clipped,
 //! with the option to freeze statistics taken from expert data.
 //!
-//! `normalize(x) = clip((x - mean) / max(std, min_std), -clip, clip)`, or,
+//! `normalize(x) = clip((x - mean) / max(std, min_std, floor_j), -clip, clip)`
+//! (`floor_j` a per-dimension floor, [`ObsNormalizer::with_dim_floors`], 0
+//! unless set), or,
 //! with soft tails ([`ObsNormalizer::with_soft_tails`]), the same inside
 //! `+-clip` and `sign(z) (clip + ln(1 + |z| - clip))` beyond it, so that an
 //! input far from the data still moves the output (slowly) instead of
@@ -328,6 +330,12 @@ impl ObsNormalizer {
         &self.var
     }
 
+    /// The per-dimension floors of [`ObsNormalizer::with_dim_floors`]: one
+    /// per dimension (0 where none was set), or empty when none was set.
+    pub fn dim_floors(&self) -> &[f64] {
+        &self.dim_floors
+    }
+
     /// Per-dimension standard deviations used to divide (after the floor).
     pub fn stds(&self) -> Vec<f64> {
         (0..self.dim()).map(|j| self.std(j)).collect()
@@ -398,7 +406,11 @@ mod tests {
             serde_json::from_str(&serde_json::to_string(&n).unwrap()).unwrap();
         assert_eq!(back, n);
         let none = ObsNormalizer::from_data(data.view(), 5.0, 0.01).unwrap();
-        assert!(!serde_json::to_string(&none).unwrap().contains("dim_floors"));
+        let text = serde_json::to_string(&none).unwrap();
+        assert!(!text.contains("dim_floors"), "{text}");
+        let old: ObsNormalizer = serde_json::from_str(&text).unwrap();
+        assert!(old.dim_floors().is_empty());
+        assert_eq!(old.stds(), plain);
         for (bad, what) in [
             ((3, 0.1), "out of range"),
             ((0, 0.0), "positive"),
