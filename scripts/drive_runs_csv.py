@@ -9,20 +9,14 @@ selection checks, no unseen roads). Runs not finished yet (no eval.json) or with
 left out with a note on stderr."""
 import json, os, re, sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from drive_table import pct  # noqa: E402  (the same reading of an eval.json entry)
+
 if len(sys.argv) < 3:
     sys.exit(__doc__)
 root, names = sys.argv[1], sys.argv[2:]
 order = {"scripted": 0, "s11": 1, "s23": 2, "s37": 3}
 
-
-def pct(p, key):
-    """The % of the demo's road (key "road") or of the unseen roads of one policy's entry."""
-    if p is None:
-        return None
-    if key == "road":
-        return p["percent_of_road"]
-    u = p.get("unseen_roads")
-    return None if u is None else u["percent_of_road"]
 print("setting,demo,seed,final_demo_road_pct,final_unseen_pct,selected_demo_road_pct,selected_unseen_pct")
 for name in names:
     rows = []
