@@ -295,6 +295,82 @@ pub fn mirror_pair(obs: &mut [f64], act: &mut [f64]) {
     act[0] = -act[0];
 }
 
+/// The observations of a path moved sideways by whole lanes: for each
+/// shift `k * lane_width` (`k` = -2, -1, 1, 2 on three lanes) and each
+/// step `t` of `poses` but the last, the observation of `poses[t]` moved
+/// by the shift, kept only if
+/// - the recorded path keeps its lane (the nearest lane centre) from
+///   that step through the next `clear_steps`: a lane change has its
+///   reason in the recorded lane, which the moved one does not share;
+/// - the moved car is on the road and touches nothing at that step and
+///   at the next `clear_steps` steps of the moved path (control steps,
+///   not sub-steps).
+///
+/// The car's motion does not depend on its lateral position, so a moved
+/// path is the one the same actions drive from the moved start until it
+/// meets something: the kept steps are the recorded lane keeping, done in
+/// another lane by a driver who is still clear `clear_steps` steps later.
+/// Returns `(k, t, observation)` in order of
+/// `k`, then `t`.
+pub fn lane_shifted(
+    world: &World,
+    poses: &[CarState],
+    clear_steps: usize,
+) -> Vec<(i64, usize, Vec<f64>)> {
+    let n = poses.len().saturating_sub(1);
+    let lane = world.config().lane_width;
+    let max_k = NUM_LANES as i64 - 1;
+    // The first step after each one at which the recorded path is in
+    // another lane (by the nearest lane centre).
+    let hw = world.config().half_width();
+    let lane_of = |p: &CarState| ((p.y + hw) / lane).floor().clamp(0.0, max_k as f64) as i64;
+    let mut next_change = vec![usize::MAX; poses.len()];
+    for t in (0..poses.len().saturating_sub(1)).rev() {
+        next_change[t] = if lane_of(&poses[t]) != lane_of(&poses[t + 1]) {
+            t + 1
+        } else {
+            next_change[t + 1]
+        };
+    }
+    let mut out = Vec::new();
+    let mut ranges = [0.0; NUM_RAYS];
+    for k in (-max_k..=max_k).filter(|&k| k != 0) {
+        let moved: Vec<CarState> = poses
+            .iter()
+            .map(|p| CarState {
+                y: p.y + k as f64 * lane,
+                ..*p
+            })
+            .collect();
+        // A car moved past a wall's far side touches nothing: off the road
+        // counts as a hit too.
+        let hit: Vec<bool> = moved
+            .iter()
+            .map(|p| p.y.abs() >= hw || world.collides(p))
+            .collect();
+        // Steps from each one to the next collision of the moved path.
+        let mut next_hit = vec![usize::MAX; hit.len()];
+        let mut after = usize::MAX;
+        for t in (0..hit.len()).rev() {
+            if hit[t] {
+                after = t;
+            }
+            next_hit[t] = after;
+        }
+        for t in 0..n {
+            let soon = |at: usize| at != usize::MAX && at <= t + clear_steps;
+            if soon(next_hit[t]) || soon(next_change[t]) {
+                continue;
+            }
+            world.lidar(&moved[t], &mut ranges);
+            let mut obs = Vec::with_capacity(OBS_DIM);
+            world.observation(&moved[t], &ranges, &mut obs);
+            out.push((k, t, obs));
+        }
+    }
+    out
+}
+
 /// `a` wrapped into `(-pi, pi]`.
 pub fn wrap_angle(a: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
@@ -1027,6 +1103,49 @@ mod tests {
         let lat = rate * env.car().speed;
         assert!((lat - 8.0).abs() < 1.0, "lateral acceleration {lat}");
     }
+    #[test]
+    fn a_path_moved_by_lanes_keeps_only_the_steps_clear_ahead() {
+        let config = DriveConfig::default();
+        let demos = crate::expert_demos(&config, 1, 0).unwrap();
+        let (poses, _) = crate::render::replay(&config, &demos.trajectories[0]).unwrap();
+        let world = World::new(&config).unwrap();
+        let clear = 40;
+        let moved = lane_shifted(&world, &poses, clear);
+        let (hw, lane) = (config.half_width(), config.lane_width);
+        let mut env = DriveEnv::new(&config).unwrap();
+        let mut per_k = std::collections::BTreeMap::new();
+        for (k, t, obs) in &moved {
+            *per_k.entry(*k).or_insert(0usize) += 1;
+            let at = |s: usize| CarState {
+                y: poses[s].y + *k as f64 * lane,
+                ..poses[s]
+            };
+            // The moved car's own view, as the env reports it there.
+            assert_eq!(*obs, env.reset_to(at(*t)).unwrap(), "k {k} t {t}");
+            assert!((obs[NUM_RAYS] * hw - at(*t).y).abs() < 1e-9);
+            let end = (*t + clear).min(poses.len() - 1);
+            assert!(
+                (*t..=end).all(|s| at(s).y.abs() < hw && !world.collides(&at(s))),
+                "k {k} t {t}"
+            );
+            // The recorded path keeps its lane over the same steps.
+            let lane_at = |s: usize| ((poses[s].y + hw) / lane).floor();
+            assert!((*t..=end).all(|s| lane_at(s) == lane_at(*t)), "k {k} t {t}");
+        }
+        // Only shifts by one or two lanes, never 0.
+        assert!(
+            per_k.keys().all(|k| [-2, -1, 1, 2].contains(k)),
+            "{per_k:?}"
+        );
+        // Moved paths run into walls and stopped cars: steps are dropped,
+        // and some are kept.
+        let steps = poses.len() - 1;
+        assert!(moved.len() > steps / 4, "{} of {steps}", moved.len());
+        assert!(per_k.values().all(|&c| c < steps), "{per_k:?}");
+        // A longer look ahead keeps fewer.
+        assert!(lane_shifted(&world, &poses, 4 * clear).len() < moved.len());
+    }
+
     #[test]
     fn the_mirrored_road_drives_as_the_mirror_image() {
         let config = DriveConfig {

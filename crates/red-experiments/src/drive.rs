@@ -192,6 +192,23 @@ pub struct DriveTrainConfig {
     /// expert-like driving on roads the demonstration never saw. Every
     /// method's reward, the warm start and the BC term see both.
     pub mirror_demos: bool,
+    /// Also learn from the demonstration moved sideways by whole lanes
+    /// (our addition; 0, the default, turns it off): with `N > 0`, the
+    /// demonstration is replayed on the run's road and each of its states
+    /// moved by one and two lanes to either side is added with the
+    /// action the demonstrator took there, when the demonstrator keeps its
+    /// lane and the moved car stays on the road and clear of every stopped
+    /// car for that step and the next `N` steps
+    /// ([`red_drive::env::lane_shifted`]; 60 steps are 3 s). A person
+    /// keeps the lane they like; the moved pairs say that keeping another
+    /// lane the same way is expert-like too, but not toward a stopped car
+    /// the demonstrator never met there. Every
+    /// method's reward, the warm start, the BC term and the policy's
+    /// input scaling see them (after the recorded pairs, before any
+    /// mirror images). Needs a demonstration that replays on the run's
+    /// road.
+    #[serde(skip_serializing_if = "is_zero_usize")]
+    pub lane_shift_clear_steps: usize,
     /// Start noise of the training episodes' lateral offset (our addition):
     /// each training episode starts `U(-this, this)` metres off the lane's
     /// centre instead of the road's `start_lateral_noise` (0.3 m), so the
@@ -559,6 +576,7 @@ impl Default for DriveTrainConfig {
             demo_road_share: 0.0,
             demo_starts: 0.0,
             mirror_demos: false,
+            lane_shift_clear_steps: 0,
             train_start_lateral_noise: None,
             train_start_heading_noise: None,
             train_obstacle_spacing_min: None,
@@ -1874,15 +1892,25 @@ fn report(
     ))
 }
 
-/// The state-action pairs the methods learn from: the demonstration's,
-/// each followed by its mirror image when `train.mirror_demos` is on.
-fn training_pairs(train: &DriveTrainConfig, demos: &Demos) -> (Array2<f64>, Array2<f64>) {
-    let (s, mut a) = demos.pairs();
+/// The state-action pairs the methods learn from: the demonstration's
+/// (`run.demo`, read into `demos`), then its lane-moved pairs on the run's
+/// road when `train.lane_shift_clear_steps` is set, each followed by its
+/// mirror image when `train.mirror_demos` is on.
+///
+/// # Errors
+/// With `lane_shift_clear_steps`, a trajectory that does not replay on
+/// the run's road.
+fn training_pairs(run: &DriveRunConfig, demos: &Demos) -> Result<(Array2<f64>, Array2<f64>)> {
+    let train = &run.train;
+    let (mut s, mut a) = demos.pairs();
     if train.demo_action_smoothing > 0 {
         a = smoothed_actions(&demos.lengths(), a.view(), train.demo_action_smoothing);
     }
+    if train.lane_shift_clear_steps > 0 {
+        (s, a) = with_lane_shifted(run, demos, s, a)?;
+    }
     if !train.mirror_demos {
-        return (s, a);
+        return Ok((s, a));
     }
     let (n, od, ad) = (s.nrows(), s.ncols(), a.ncols());
     let mut s2 = Array2::zeros((2 * n, od));
@@ -1896,7 +1924,46 @@ fn training_pairs(train: &DriveTrainConfig, demos: &Demos) -> (Array2<f64>, Arra
             red_drive::env::mirror_pair(o.as_slice_mut().unwrap(), u.as_slice_mut().unwrap());
         }
     }
-    (s2, a2)
+    Ok((s2, a2))
+}
+
+/// `(s, a)`, the pairs of `demos` stacked in order, followed by the pairs
+/// of each trajectory moved by whole lanes on the run's road
+/// ([`red_drive::env::lane_shifted`]), each with the action of the step it
+/// was moved from.
+fn with_lane_shifted(
+    run: &DriveRunConfig,
+    demos: &Demos,
+    s: Array2<f64>,
+    a: Array2<f64>,
+) -> Result<(Array2<f64>, Array2<f64>)> {
+    let world = red_drive::World::new(&run.drive)?;
+    let (mut rows_s, mut rows_a) = (Vec::new(), Vec::new());
+    let mut start = 0;
+    for (i, traj) in demos.trajectories.iter().enumerate() {
+        let (poses, _) = red_drive::render::replay(&run.drive, traj).map_err(|e| Error::Input {
+            path: run.demo.clone().into(),
+            reason: format!(
+                "trajectory {i} does not replay on the run's road, so \
+                 train.lane_shift_clear_steps has no path to move ({e}); train on the \
+                 demonstration's own road or set it to 0"
+            ),
+        })?;
+        let clear = run.train.lane_shift_clear_steps;
+        for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, clear) {
+            rows_s.extend(obs);
+            rows_a.extend(a.row(start + t).iter().copied());
+        }
+        start += traj.actions.len();
+    }
+    let extra_s = Array2::from_shape_vec((rows_s.len() / s.ncols(), s.ncols()), rows_s)
+        .expect("observations of OBS_DIM numbers");
+    let extra_a = Array2::from_shape_vec((rows_a.len() / a.ncols(), a.ncols()), rows_a)
+        .expect("actions of the demonstration's width");
+    let cat = |x: Array2<f64>, y: Array2<f64>| {
+        ndarray::concatenate(ndarray::Axis(0), &[x.view(), y.view()]).expect("same width")
+    };
+    Ok((cat(s, extra_s), cat(a, extra_a)))
 }
 
 /// The actions `(n, act_dim)` of trajectories of `lengths` (stacked in
@@ -2510,7 +2577,7 @@ pub fn run_new(
     for n in run_dir.notes() {
         progress.note(n);
     }
-    let (es, ea) = training_pairs(&config.train, demos);
+    let (es, ea) = training_pairs(&config, demos)?;
     let mut rng = Seeder::new(config.seed).rng(Stream::Init);
     let norm = policy_normalizer(&config.train, es.view())?;
     let mut policy =
@@ -2581,7 +2648,7 @@ fn drive_run(
     let run = ck.config.clone();
     run_dir.write_json("config.json", &run)?;
     let ck_path = run_dir.file("checkpoint.json");
-    let (es, ea) = training_pairs(&run.train, demos);
+    let (es, ea) = training_pairs(&run, demos)?;
     let starts = demo_states(&run, demos)?;
     let base_elapsed = ck.elapsed_s;
     while ck.done.len() < run.methods.len() {
@@ -3441,10 +3508,13 @@ mod tests {
     fn mirrored_demos_follow_each_pair_with_its_mirror_image() {
         let demos = red_drive::expert_demos(&DriveConfig::default(), 1, 0).unwrap();
         let (s, a) = demos.pairs();
-        let mut train = DriveTrainConfig::default();
-        assert_eq!(training_pairs(&train, &demos), (s.clone(), a.clone()));
-        train.mirror_demos = true;
-        let (s2, a2) = training_pairs(&train, &demos);
+        let mut run = DriveRunConfig::new("demo.json", DriveConfig::default());
+        assert_eq!(
+            training_pairs(&run, &demos).unwrap(),
+            (s.clone(), a.clone())
+        );
+        run.train.mirror_demos = true;
+        let (s2, a2) = training_pairs(&run, &demos).unwrap();
         assert_eq!((s2.nrows(), a2.nrows()), (2 * s.nrows(), 2 * a.nrows()));
         for i in 0..s.nrows() {
             assert_eq!(s2.row(2 * i), s.row(i));
@@ -3457,6 +3527,45 @@ mod tests {
             red_drive::env::mirror_pair(&mut o, &mut u);
             assert_eq!((o, u), (s.row(i).to_vec(), a.row(i).to_vec()));
         }
+    }
+
+    #[test]
+    fn lane_moved_pairs_follow_the_recorded_ones_with_their_steps_actions() {
+        let road = DriveConfig::default();
+        let demos = red_drive::expert_demos(&road, 2, 0).unwrap();
+        let (s, a) = demos.pairs();
+        let mut run = DriveRunConfig::new("demo.json", road.clone());
+        run.train.lane_shift_clear_steps = 60;
+        let (s2, a2) = training_pairs(&run, &demos).unwrap();
+        let n = s.nrows();
+        assert_eq!(s2.slice(ndarray::s![..n, ..]), s);
+        assert_eq!(a2.slice(ndarray::s![..n, ..]), a);
+        // The moved pairs, trajectory by trajectory, as red-drive makes them.
+        let world = red_drive::World::new(&road).unwrap();
+        let (mut row, mut start) = (n, 0);
+        for traj in &demos.trajectories {
+            let (poses, _) = red_drive::render::replay(&road, traj).unwrap();
+            for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, 60) {
+                assert_eq!(s2.row(row).to_vec(), obs);
+                assert_eq!(a2.row(row), a.row(start + t));
+                row += 1;
+            }
+            start += traj.actions.len();
+        }
+        assert_eq!(row, s2.nrows());
+        assert!(row > n, "some moved pairs are kept");
+        // Mirror images come after: every pair, moved or not, is doubled.
+        run.train.mirror_demos = true;
+        assert_eq!(training_pairs(&run, &demos).unwrap().0.nrows(), 2 * row);
+        // A demonstration that does not replay on the run's road is refused
+        // with the file and the way out.
+        let mut other = run.clone();
+        other.drive.track_seed += 1;
+        let err = training_pairs(&other, &demos).unwrap_err().to_string();
+        assert!(
+            err.contains("demo.json") && err.contains("lane_shift_clear_steps"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -3473,11 +3582,9 @@ mod tests {
         // The pipeline applies it to the actions only, and 0 is off.
         let demos = red_drive::expert_demos(&DriveConfig::default(), 1, 0).unwrap();
         let (s, a) = demos.pairs();
-        let train = DriveTrainConfig {
-            demo_action_smoothing: 2,
-            ..DriveTrainConfig::default()
-        };
-        let (s2, a2) = training_pairs(&train, &demos);
+        let mut run = DriveRunConfig::new("demo.json", DriveConfig::default());
+        run.train.demo_action_smoothing = 2;
+        let (s2, a2) = training_pairs(&run, &demos).unwrap();
         assert_eq!(s2, s);
         assert_eq!(a2, smoothed_actions(&demos.lengths(), a.view(), 2));
         assert_ne!(a2, a);
