@@ -295,46 +295,46 @@ pub fn mirror_pair(obs: &mut [f64], act: &mut [f64]) {
     act[0] = -act[0];
 }
 
-/// The observations of a path moved sideways by whole lanes: for each
-/// shift `k * lane_width` (`k` = -2, -1, 1, 2 on three lanes) and each
-/// step `t` of `poses` but the last, the observation of `poses[t]` moved
-/// by the shift, kept only if
-/// - the recorded path keeps its lane (the nearest lane centre) from
-///   that step through the next `clear_steps`: a lane change has its
-///   reason in the recorded lane, which the moved one does not share;
-/// - the moved car is on the road and touches nothing at that step and
-///   at the next `clear_steps` steps of the moved path (control steps,
+/// The observations ([`OBS_DIM`] numbers each) of a recorded path moved
+/// sideways by whole lanes: for each shift `k * lane_width` (`k` = -2,
+/// -1, 1, 2 on three lanes) and each step `t` of `poses` but the last
+/// (the last pose has no action), the observation of `poses[t]` moved by
+/// the shift, kept only if, over steps `t` to `t + clear_steps`:
+/// - the recorded path keeps its lane (the nearest lane centre): a lane
+///   change has its reason in the recorded lane, which the moved one does
+///   not share;
+/// - the moved car is on the road and touches nothing (at control steps,
 ///   not sub-steps).
+///
+/// Steps past the path's last pose count as clear only when `finished`
+/// (the path ended at the end of the road); otherwise the last
+/// `clear_steps` steps are dropped.
 ///
 /// The car's motion does not depend on its lateral position, so a moved
 /// path is the one the same actions drive from the moved start until it
 /// meets something: the kept steps are the recorded lane keeping, done in
-/// another lane by a driver who is still clear `clear_steps` steps later.
-/// Returns `(k, t, observation)` in order of
-/// `k`, then `t`.
+/// another lane by a driver still clear `clear_steps` steps later.
+/// Returns `(k, t, observation)` in order of `k`, then `t`.
 pub fn lane_shifted(
     world: &World,
     poses: &[CarState],
+    finished: bool,
     clear_steps: usize,
 ) -> Vec<(i64, usize, Vec<f64>)> {
     let n = poses.len().saturating_sub(1);
-    let lane = world.config().lane_width;
-    let max_k = NUM_LANES as i64 - 1;
-    // The first step after each one at which the recorded path is in
-    // another lane (by the nearest lane centre).
-    let hw = world.config().half_width();
-    let lane_of = |p: &CarState| ((p.y + hw) / lane).floor().clamp(0.0, max_k as f64) as i64;
-    let mut next_change = vec![usize::MAX; poses.len()];
-    for t in (0..poses.len().saturating_sub(1)).rev() {
-        next_change[t] = if lane_of(&poses[t]) != lane_of(&poses[t + 1]) {
-            t + 1
-        } else {
-            next_change[t + 1]
-        };
-    }
+    let road = world.config();
+    let (lane, hw) = (road.lane_width, road.half_width());
+    // For each step, the first one from it on at which the recorded path
+    // has just changed lanes.
+    let lanes: Vec<usize> = poses
+        .iter()
+        .map(|p| crate::human::nearest_lane(road, p.y))
+        .collect();
+    let next_change = first_at_or_after(n + 1, |t| t > 0 && lanes[t] != lanes[t - 1]);
+    let max_shift = NUM_LANES as i64 - 1;
     let mut out = Vec::new();
     let mut ranges = [0.0; NUM_RAYS];
-    for k in (-max_k..=max_k).filter(|&k| k != 0) {
+    for k in (-max_shift..=max_shift).filter(|&k| k != 0) {
         let moved: Vec<CarState> = poses
             .iter()
             .map(|p| CarState {
@@ -344,22 +344,14 @@ pub fn lane_shifted(
             .collect();
         // A car moved past a wall's far side touches nothing: off the road
         // counts as a hit too.
-        let hit: Vec<bool> = moved
-            .iter()
-            .map(|p| p.y.abs() >= hw || world.collides(p))
-            .collect();
-        // Steps from each one to the next collision of the moved path.
-        let mut next_hit = vec![usize::MAX; hit.len()];
-        let mut after = usize::MAX;
-        for t in (0..hit.len()).rev() {
-            if hit[t] {
-                after = t;
-            }
-            next_hit[t] = after;
-        }
+        let next_hit = first_at_or_after(n + 1, |t| {
+            moved[t].y.abs() >= hw || world.collides(&moved[t])
+        });
         for t in 0..n {
-            let soon = |at: usize| at != usize::MAX && at <= t + clear_steps;
-            if soon(next_hit[t]) || soon(next_change[t]) {
+            let last = t + clear_steps;
+            let blocked = |at: Option<usize>| at.is_some_and(|at| at <= last);
+            // A change at step t itself is the lane t is in, not a change.
+            if blocked(next_hit[t]) || blocked(next_change[t + 1]) || (!finished && last > n) {
                 continue;
             }
             world.lidar(&moved[t], &mut ranges);
@@ -367,6 +359,19 @@ pub fn lane_shifted(
             world.observation(&moved[t], &ranges, &mut obs);
             out.push((k, t, obs));
         }
+    }
+    out
+}
+
+/// For each `t < len`, the first `s >= t` with `marked(s)`, if any.
+fn first_at_or_after(len: usize, marked: impl Fn(usize) -> bool) -> Vec<Option<usize>> {
+    let mut out = vec![None; len];
+    let mut next = None;
+    for t in (0..len).rev() {
+        if marked(t) {
+            next = Some(t);
+        }
+        out[t] = next;
     }
     out
 }
@@ -1104,46 +1109,61 @@ mod tests {
         assert!((lat - 8.0).abs() < 1.0, "lateral acceleration {lat}");
     }
     #[test]
-    fn a_path_moved_by_lanes_keeps_only_the_steps_clear_ahead() {
+    fn a_path_moved_by_lanes_keeps_exactly_the_lane_keeping_steps_clear_ahead() {
         let config = DriveConfig::default();
         let demos = crate::expert_demos(&config, 1, 0).unwrap();
         let (poses, _) = crate::render::replay(&config, &demos.trajectories[0]).unwrap();
         let world = World::new(&config).unwrap();
-        let clear = 40;
-        let moved = lane_shifted(&world, &poses, clear);
         let (hw, lane) = (config.half_width(), config.lane_width);
+        let n = poses.len() - 1;
+        let lane_at = |s: usize| crate::human::nearest_lane(&config, poses[s].y);
         let mut env = DriveEnv::new(&config).unwrap();
-        let mut per_k = std::collections::BTreeMap::new();
-        for (k, t, obs) in &moved {
-            *per_k.entry(*k).or_insert(0usize) += 1;
-            let at = |s: usize| CarState {
-                y: poses[s].y + *k as f64 * lane,
-                ..poses[s]
-            };
-            // The moved car's own view, as the env reports it there.
-            assert_eq!(*obs, env.reset_to(at(*t)).unwrap(), "k {k} t {t}");
-            assert!((obs[NUM_RAYS] * hw - at(*t).y).abs() < 1e-9);
-            let end = (*t + clear).min(poses.len() - 1);
-            assert!(
-                (*t..=end).all(|s| at(s).y.abs() < hw && !world.collides(&at(s))),
-                "k {k} t {t}"
-            );
-            // The recorded path keeps its lane over the same steps.
-            let lane_at = |s: usize| ((poses[s].y + hw) / lane).floor();
-            assert!((*t..=end).all(|s| lane_at(s) == lane_at(*t)), "k {k} t {t}");
+        for (clear, finished) in [(40, true), (40, false), (160, true)] {
+            let moved = lane_shifted(&world, &poses, finished, clear);
+            let mut want = Vec::new();
+            for k in [-2i64, -1, 1, 2] {
+                let at = |s: usize| CarState {
+                    y: poses[s].y + k as f64 * lane,
+                    ..poses[s]
+                };
+                // Every step checked one by one over its whole window.
+                for t in 0..n {
+                    let clear_ahead = (t..=t + clear).all(|s| {
+                        if s > n {
+                            return finished;
+                        }
+                        at(s).y.abs() < hw && !world.collides(&at(s)) && lane_at(s) == lane_at(t)
+                    });
+                    if clear_ahead {
+                        want.push((k, t));
+                    }
+                }
+            }
+            let got: Vec<(i64, usize)> = moved.iter().map(|(k, t, _)| (*k, *t)).collect();
+            assert_eq!(got, want, "clear {clear} finished {finished}");
+            // Some steps of every shift are dropped (walls, stopped cars,
+            // lane changes); with 2 s of look ahead, each shift by one lane
+            // keeps some.
+            for k in [-2i64, -1, 1, 2] {
+                let kept = got.iter().filter(|(j, _)| *j == k).count();
+                assert!(kept < n, "k {k}: {kept} of {n}");
+                assert!(k.abs() == 2 || clear > 40 || kept > 0, "k {k}");
+            }
+            // Each is the moved car's own view, as the env reports it.
+            for (k, t, obs) in moved.iter().step_by(37) {
+                let car = CarState {
+                    y: poses[*t].y + *k as f64 * lane,
+                    ..poses[*t]
+                };
+                assert_eq!(*obs, env.reset_to(car).unwrap(), "k {k} t {t}");
+            }
         }
-        // Only shifts by one or two lanes, never 0.
-        assert!(
-            per_k.keys().all(|k| [-2, -1, 1, 2].contains(k)),
-            "{per_k:?}"
-        );
-        // Moved paths run into walls and stopped cars: steps are dropped,
-        // and some are kept.
-        let steps = poses.len() - 1;
-        assert!(moved.len() > steps / 4, "{} of {steps}", moved.len());
-        assert!(per_k.values().all(|&c| c < steps), "{per_k:?}");
-        // A longer look ahead keeps fewer.
-        assert!(lane_shifted(&world, &poses, 4 * clear).len() < moved.len());
+        // The expert changes lanes and meets stopped cars, so the filter
+        // bites: a longer look ahead keeps fewer; an unfinished path drops
+        // its last steps.
+        let count = |clear, finished| lane_shifted(&world, &poses, finished, clear).len();
+        assert!(count(160, true) < count(40, true));
+        assert!(count(40, false) < count(40, true));
     }
 
     #[test]

@@ -526,7 +526,7 @@ impl HumanDriver {
 }
 
 /// The lane whose centre is nearest `y`.
-fn nearest_lane(road: &DriveConfig, y: f64) -> usize {
+pub(crate) fn nearest_lane(road: &DriveConfig, y: f64) -> usize {
     (0..NUM_LANES)
         .min_by(|&a, &b| {
             (road.lane_center(a) - y)

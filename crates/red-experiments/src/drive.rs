@@ -196,7 +196,8 @@ pub struct DriveTrainConfig {
     /// (our addition; 0, the default, turns it off): with `N > 0`, the
     /// demonstration is replayed on the run's road and each of its states
     /// moved by one and two lanes to either side is added with the
-    /// action the demonstrator took there, when the demonstrator keeps its
+    /// action of the step it was moved from (smoothed if
+    /// `demo_action_smoothing` is set), when the demonstrator keeps its
     /// lane and the moved car stays on the road and clear of every stopped
     /// car for that step and the next `N` steps
     /// ([`red_drive::env::lane_shifted`]; 60 steps are 3 s). A person
@@ -204,9 +205,9 @@ pub struct DriveTrainConfig {
     /// lane the same way is expert-like too, but not toward a stopped car
     /// the demonstrator never met there. Every
     /// method's reward, the warm start, the BC term and the policy's
-    /// input scaling see them (after the recorded pairs, before any
-    /// mirror images). Needs a demonstration that replays on the run's
-    /// road.
+    /// input scaling see them (after the recorded pairs; with
+    /// `mirror_demos` each pair is followed by its mirror image). Needs a
+    /// demonstration that replays on the run's road.
     #[serde(skip_serializing_if = "is_zero_usize")]
     pub lane_shift_clear_steps: usize,
     /// Start noise of the training episodes' lateral offset (our addition):
@@ -1938,19 +1939,17 @@ fn with_lane_shifted(
     a: Array2<f64>,
 ) -> Result<(Array2<f64>, Array2<f64>)> {
     let world = red_drive::World::new(&run.drive)?;
+    let clear = run.train.lane_shift_clear_steps;
     let (mut rows_s, mut rows_a) = (Vec::new(), Vec::new());
     let mut start = 0;
-    for (i, traj) in demos.trajectories.iter().enumerate() {
-        let (poses, _) = red_drive::render::replay(&run.drive, traj).map_err(|e| Error::Input {
-            path: run.demo.clone().into(),
-            reason: format!(
-                "trajectory {i} does not replay on the run's road, so \
-                 train.lane_shift_clear_steps has no path to move ({e}); train on the \
-                 demonstration's own road or set it to 0"
-            ),
-        })?;
-        let clear = run.train.lane_shift_clear_steps;
-        for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, clear) {
+    for (traj, (poses, end)) in demos.trajectories.iter().zip(replayed(
+        run,
+        demos,
+        "train.lane_shift_clear_steps",
+        "paths to move",
+    )?) {
+        let finished = end == PathEnd::Success;
+        for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, finished, clear) {
             rows_s.extend(obs);
             rows_a.extend(a.row(start + t).iter().copied());
         }
@@ -2426,18 +2425,44 @@ fn demo_states(run: &DriveRunConfig, demos: &Demos) -> Result<Vec<CarState>> {
         return Ok(Vec::new());
     }
     let mut states = Vec::new();
-    for (i, traj) in demos.trajectories.iter().enumerate() {
-        let (poses, _) = red_drive::render::replay(&run.drive, traj).map_err(|e| Error::Input {
-            path: run.demo.clone().into(),
-            reason: format!(
-                "trajectory {i} does not replay on the run's road, so train.demo_starts has no \
-                 states to start from ({e}); train on the demonstration's own road or set \
-                 demo_starts to 0"
-            ),
-        })?;
+    for (traj, (poses, _)) in demos.trajectories.iter().zip(replayed(
+        run,
+        demos,
+        "train.demo_starts",
+        "states to start from",
+    )?) {
         states.extend(poses.into_iter().take(traj.actions.len()));
     }
     Ok(states)
+}
+
+/// Each trajectory of `demos` replayed on the run's road: its car states
+/// (one more than its actions) and how it ended. `setting` and `needs`
+/// name what asked for them in the error.
+///
+/// # Errors
+/// A trajectory that does not replay on the run's road, naming the file,
+/// the trajectory and `setting`.
+fn replayed(
+    run: &DriveRunConfig,
+    demos: &Demos,
+    setting: &str,
+    needs: &str,
+) -> Result<Vec<(Vec<CarState>, PathEnd)>> {
+    demos
+        .trajectories
+        .iter()
+        .enumerate()
+        .map(|(i, traj)| {
+            red_drive::render::replay(&run.drive, traj).map_err(|e| Error::Input {
+                path: run.demo.clone().into(),
+                reason: format!(
+                    "trajectory {i} does not replay on the run's road, so {setting} has no \
+                     {needs} ({e}); train on the demonstration's own road or set it off"
+                ),
+            })
+        })
+        .collect()
 }
 
 /// The file of a run folder that holds `method`'s final policy (BC: the
@@ -3540,21 +3565,32 @@ mod tests {
         let n = s.nrows();
         assert_eq!(s2.slice(ndarray::s![..n, ..]), s);
         assert_eq!(a2.slice(ndarray::s![..n, ..]), a);
-        // The moved pairs, trajectory by trajectory, as red-drive makes them.
+        // The moved pairs, trajectory by trajectory, as red-drive makes them,
+        // each with its step's recorded action (smoothed within its own
+        // trajectory when smoothing is on).
         let world = red_drive::World::new(&road).unwrap();
-        let (mut row, mut start) = (n, 0);
+        run.train.demo_action_smoothing = 3;
+        let (s3, a3) = training_pairs(&run, &demos).unwrap();
+        assert_eq!(s3, s2);
+        let mut row = n;
         for traj in &demos.trajectories {
-            let (poses, _) = red_drive::render::replay(&road, traj).unwrap();
-            for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, 60) {
+            let (poses, end) = red_drive::render::replay(&road, traj).unwrap();
+            assert_eq!(end, PathEnd::Success);
+            let recorded =
+                Array2::from_shape_vec((traj.actions.len(), ACT_DIM), traj.actions.concat())
+                    .unwrap();
+            let smoothed = smoothed_actions(&[traj.actions.len()], recorded.view(), 3);
+            for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, true, 60) {
                 assert_eq!(s2.row(row).to_vec(), obs);
-                assert_eq!(a2.row(row), a.row(start + t));
+                assert_eq!(a2.row(row).to_vec(), traj.actions[t]);
+                assert_eq!(a3.row(row), smoothed.row(t));
                 row += 1;
             }
-            start += traj.actions.len();
         }
         assert_eq!(row, s2.nrows());
         assert!(row > n, "some moved pairs are kept");
-        // Mirror images come after: every pair, moved or not, is doubled.
+        // With mirror images every pair, moved or not, is doubled.
+        run.train.demo_action_smoothing = 0;
         run.train.mirror_demos = true;
         assert_eq!(training_pairs(&run, &demos).unwrap().0.nrows(), 2 * row);
         // A demonstration that does not replay on the run's road is refused
