@@ -308,7 +308,10 @@ pub fn mirror_pair(obs: &mut [f64], act: &mut [f64]) {
 ///
 /// Steps past the path's last pose count as clear only when `finished`
 /// (the path ended at the end of the road); otherwise the last
-/// `clear_steps` steps are dropped.
+/// `clear_steps` steps are dropped. With `undriven_only`, a step is moved
+/// only into a lane the recorded path never keeps for more than
+/// `clear_steps` steps in a row: the moved pairs then stand in where the
+/// demonstration shows no lane keeping of its own.
 ///
 /// The car's motion does not depend on its lateral position, so a moved
 /// path is the one the same actions drive from the moved start until it
@@ -320,6 +323,7 @@ pub fn lane_shifted(
     poses: &[CarState],
     finished: bool,
     clear_steps: usize,
+    undriven_only: bool,
 ) -> Vec<(i64, usize, Vec<f64>)> {
     let n = poses.len().saturating_sub(1);
     let road = world.config();
@@ -331,6 +335,20 @@ pub fn lane_shifted(
         .map(|p| crate::human::nearest_lane(road, p.y))
         .collect();
     let next_change = first_at_or_after(n + 1, |t| t > 0 && lanes[t] != lanes[t - 1]);
+    // The lanes the recorded path keeps for more than `clear_steps` steps
+    // in a row somewhere.
+    let mut driven = [false; NUM_LANES];
+    let mut kept_for = 0;
+    for t in 0..lanes.len() {
+        kept_for = if t > 0 && lanes[t] == lanes[t - 1] {
+            kept_for + 1
+        } else {
+            1
+        };
+        if kept_for > clear_steps {
+            driven[lanes[t]] = true;
+        }
+    }
     let max_shift = NUM_LANES as i64 - 1;
     let mut out = Vec::new();
     let mut ranges = [0.0; NUM_RAYS];
@@ -352,6 +370,10 @@ pub fn lane_shifted(
             let blocked = |at: Option<usize>| at.is_some_and(|at| at <= last);
             // A change at step t itself is the lane t is in, not a change.
             if blocked(next_hit[t]) || blocked(next_change[t + 1]) || (!finished && last > n) {
+                continue;
+            }
+            let to = lanes[t] as i64 + k;
+            if undriven_only && (0..NUM_LANES as i64).contains(&to) && driven[to as usize] {
                 continue;
             }
             world.lidar(&moved[t], &mut ranges);
@@ -1118,8 +1140,20 @@ mod tests {
         let n = poses.len() - 1;
         let lane_at = |s: usize| crate::human::nearest_lane(&config, poses[s].y);
         let mut env = DriveEnv::new(&config).unwrap();
-        for (clear, finished) in [(40, true), (40, false), (160, true)] {
-            let moved = lane_shifted(&world, &poses, finished, clear);
+        let cases = [
+            (40, true, false),
+            (40, false, false),
+            (160, true, false),
+            (40, true, true),
+            (160, true, true),
+        ];
+        for (clear, finished, undriven_only) in cases {
+            let moved = lane_shifted(&world, &poses, finished, clear, undriven_only);
+            // The lanes the path keeps for clear + 1 steps in a row.
+            let driven = |l: i64| {
+                (0..=n.saturating_sub(clear))
+                    .any(|t| (t..=t + clear).all(|s| lane_at(s) as i64 == l))
+            };
             let mut want = Vec::new();
             for k in [-2i64, -1, 1, 2] {
                 let at = |s: usize| CarState {
@@ -1134,20 +1168,23 @@ mod tests {
                         }
                         at(s).y.abs() < hw && !world.collides(&at(s)) && lane_at(s) == lane_at(t)
                     });
-                    if clear_ahead {
+                    if clear_ahead && !(undriven_only && driven(lane_at(t) as i64 + k)) {
                         want.push((k, t));
                     }
                 }
             }
             let got: Vec<(i64, usize)> = moved.iter().map(|(k, t, _)| (*k, *t)).collect();
-            assert_eq!(got, want, "clear {clear} finished {finished}");
+            assert_eq!(got, want, "clear {clear} {finished} {undriven_only}");
             // Some steps of every shift are dropped (walls, stopped cars,
             // lane changes); with 2 s of look ahead, each shift by one lane
             // keeps some.
             for k in [-2i64, -1, 1, 2] {
                 let kept = got.iter().filter(|(j, _)| *j == k).count();
                 assert!(kept < n, "k {k}: {kept} of {n}");
-                assert!(k.abs() == 2 || clear > 40 || kept > 0, "k {k}");
+                assert!(
+                    k.abs() == 2 || clear > 40 || undriven_only || kept > 0,
+                    "k {k}"
+                );
             }
             // Each is the moved car's own view, as the env reports it.
             for (k, t, obs) in moved.iter().step_by(37) {
@@ -1161,9 +1198,14 @@ mod tests {
         // The expert changes lanes and meets stopped cars, so the filter
         // bites: a longer look ahead keeps fewer; an unfinished path drops
         // its last steps.
-        let count = |clear, finished| lane_shifted(&world, &poses, finished, clear).len();
-        assert!(count(160, true) < count(40, true));
-        assert!(count(40, false) < count(40, true));
+        let count =
+            |clear, finished, only| lane_shifted(&world, &poses, finished, clear, only).len();
+        assert!(count(160, true, false) < count(40, true, false));
+        assert!(count(40, false, false) < count(40, true, false));
+        // The expert keeps two of the three lanes: moves into those go, the
+        // ones into the third stay.
+        let only = count(40, true, true);
+        assert!(0 < only && only < count(40, true, false), "{only}");
     }
 
     #[test]

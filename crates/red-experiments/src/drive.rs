@@ -210,6 +210,12 @@ pub struct DriveTrainConfig {
     /// demonstration that replays on the run's road.
     #[serde(skip_serializing_if = "is_zero_usize")]
     pub lane_shift_clear_steps: usize,
+    /// With `lane_shift_clear_steps`, move the demonstration only into
+    /// the lanes it never keeps for more than that many steps in a row
+    /// (our addition, off by default): where the demonstrator keeps a
+    /// lane of its own accord, its own pairs speak for it.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub lane_shift_undriven_only: bool,
     /// Start noise of the training episodes' lateral offset (our addition):
     /// each training episode starts `U(-this, this)` metres off the lane's
     /// centre instead of the road's `start_lateral_noise` (0.3 m), so the
@@ -578,6 +584,7 @@ impl Default for DriveTrainConfig {
             demo_starts: 0.0,
             mirror_demos: false,
             lane_shift_clear_steps: 0,
+            lane_shift_undriven_only: false,
             train_start_lateral_noise: None,
             train_start_heading_noise: None,
             train_obstacle_spacing_min: None,
@@ -1949,7 +1956,8 @@ fn with_lane_shifted(
         "paths to move",
     )?) {
         let finished = end == PathEnd::Success;
-        for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, finished, clear) {
+        let only = run.train.lane_shift_undriven_only;
+        for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, finished, clear, only) {
             rows_s.extend(obs);
             rows_a.extend(a.row(start + t).iter().copied());
         }
@@ -3580,7 +3588,7 @@ mod tests {
                 Array2::from_shape_vec((traj.actions.len(), ACT_DIM), traj.actions.concat())
                     .unwrap();
             let smoothed = smoothed_actions(&[traj.actions.len()], recorded.view(), 3);
-            for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, true, 60) {
+            for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, true, 60, false) {
                 assert_eq!(s2.row(row).to_vec(), obs);
                 assert_eq!(a2.row(row).to_vec(), traj.actions[t]);
                 assert_eq!(a3.row(row), smoothed.row(t));
@@ -3589,8 +3597,13 @@ mod tests {
         }
         assert_eq!(row, s2.nrows());
         assert!(row > n, "some moved pairs are kept");
-        // With mirror images every pair, moved or not, is doubled.
+        // Moved only into the lane the expert never keeps: fewer pairs.
         run.train.demo_action_smoothing = 0;
+        run.train.lane_shift_undriven_only = true;
+        let only = training_pairs(&run, &demos).unwrap().0.nrows();
+        assert!(n < only && only < row, "{n} {only} {row}");
+        run.train.lane_shift_undriven_only = false;
+        // With mirror images every pair, moved or not, is doubled.
         run.train.mirror_demos = true;
         assert_eq!(training_pairs(&run, &demos).unwrap().0.nrows(), 2 * row);
         // A demonstration that does not replay on the run's road is refused
