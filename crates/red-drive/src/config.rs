@@ -198,6 +198,17 @@ impl DriveConfig {
         (lane as f64 - 0.5 * (NUM_LANES as f64 - 1.0)) * self.lane_width
     }
 
+    /// The lane whose centre is nearest the lateral position `y`.
+    pub fn nearest_lane(&self, y: f64) -> usize {
+        (0..NUM_LANES)
+            .min_by(|&a, &b| {
+                (self.lane_center(a) - y)
+                    .abs()
+                    .total_cmp(&(self.lane_center(b) - y).abs())
+            })
+            .unwrap_or(1)
+    }
+
     /// Checks every field.
     ///
     /// # Errors

@@ -330,10 +330,7 @@ pub fn lane_shifted(
     let (lane, hw) = (road.lane_width, road.half_width());
     // For each step, the first one from it on at which the recorded path
     // has just changed lanes.
-    let lanes: Vec<usize> = poses
-        .iter()
-        .map(|p| crate::human::nearest_lane(road, p.y))
-        .collect();
+    let lanes: Vec<usize> = poses.iter().map(|p| road.nearest_lane(p.y)).collect();
     let next_change = first_at_or_after(n + 1, |t| t > 0 && lanes[t] != lanes[t - 1]);
     // The lanes the recorded path keeps for more than `clear_steps` steps
     // in a row somewhere.
@@ -1138,7 +1135,7 @@ mod tests {
         let world = World::new(&config).unwrap();
         let (hw, lane) = (config.half_width(), config.lane_width);
         let n = poses.len() - 1;
-        let lane_at = |s: usize| crate::human::nearest_lane(&config, poses[s].y);
+        let lane_at = |s: usize| config.nearest_lane(poses[s].y);
         let mut env = DriveEnv::new(&config).unwrap();
         let cases = [
             (40, true, false),

@@ -336,7 +336,7 @@ impl HumanDriver {
         let vy = car.speed * car.heading.sin() + self.noise(h.drift_noise);
         // Where it will be when its keys start to act.
         let y_then = y + vy * delay;
-        let lane_now = nearest_lane(&road, y);
+        let lane_now = road.nearest_lane(y);
         let (target, blocker) = self.choose_lane(rec, lane_now, y_then + vy);
         let e = y_then - road.lane_center(target);
 
@@ -523,17 +523,6 @@ impl HumanDriver {
             .map(|o| o.x - car.x - road.car_length);
         (target, blocker)
     }
-}
-
-/// The lane whose centre is nearest `y`.
-pub(crate) fn nearest_lane(road: &DriveConfig, y: f64) -> usize {
-    (0..NUM_LANES)
-        .min_by(|&a, &b| {
-            (road.lane_center(a) - y)
-                .abs()
-                .total_cmp(&(road.lane_center(b) - y).abs())
-        })
-        .unwrap_or(1)
 }
 
 /// For each lane `c`, the cost of the best plan that is in `c` beside the
