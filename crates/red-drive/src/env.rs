@@ -382,6 +382,15 @@ pub fn lane_shifted(
     out
 }
 
+/// How many of `poses` lie in each lane (the lane nearest the car).
+pub fn lane_steps(road: &DriveConfig, poses: &[CarState]) -> [usize; NUM_LANES] {
+    let mut steps = [0; NUM_LANES];
+    for p in poses {
+        steps[road.nearest_lane(p.y)] += 1;
+    }
+    steps
+}
+
 /// For each `t < len`, the first `s >= t` with `marked(s)`, if any.
 fn first_at_or_after(len: usize, marked: impl Fn(usize) -> bool) -> Vec<Option<usize>> {
     let mut out = vec![None; len];

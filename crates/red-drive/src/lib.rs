@@ -35,7 +35,7 @@ pub mod scenario;
 pub mod terminal;
 pub mod track;
 
-pub use config::{ACT_DIM, CONTROL_HZ, DriveConfig, NUM_RAYS, OBS_DIM};
+pub use config::{ACT_DIM, CONTROL_HZ, DriveConfig, NUM_LANES, NUM_RAYS, OBS_DIM};
 pub use env::{CarState, DriveEnv, World, make_env};
 pub use error::{Error, Result};
 pub use expert::{Expert, ExpertStyle, expert_demos};

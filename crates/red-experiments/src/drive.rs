@@ -34,8 +34,8 @@ use red_drive::env::{INFO_COLLISION, INFO_SUCCESS};
 use red_drive::render::demo_path;
 use red_drive::scenario::{RoadSource, check_fits, differences, road_of};
 use red_drive::{
-    ACT_DIM, CarState, DriveConfig, ENV_ID, OBS_DIM, PathEnd, PathSpec, RenderOptions, make_env,
-    render_png,
+    ACT_DIM, CarState, DriveConfig, ENV_ID, NUM_LANES, OBS_DIM, PathEnd, PathSpec, RenderOptions,
+    make_env, render_png,
 };
 use red_rl::bc::{BcConfig, behavior_clone};
 use red_rl::episodic::{EpisodeHooks, EpisodicLearner};
@@ -223,6 +223,15 @@ pub struct DriveTrainConfig {
     /// -15.9 points of unseen roads (s.e. 7.2), so it stays off.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub lane_shift_undriven_only: bool,
+    /// With `lane_shift_clear_steps`, move the demonstration only when it
+    /// keeps one lane for at least this share of its steps (our addition;
+    /// 0, the default, moves it whatever its lanes): a demonstrator who
+    /// hardly leaves one lane says nothing of the others, one who changes
+    /// lanes says where to be, and moved pairs would outweigh that.
+    /// Counted over every trajectory's replayed steps, by the lane nearest
+    /// the car ([`red_drive::env::lane_steps`]).
+    #[serde(skip_serializing_if = "is_zero_f64")]
+    pub lane_shift_min_lane_share: f64,
     /// Start noise of the training episodes' lateral offset (our addition):
     /// each training episode starts `U(-this, this)` metres off the lane's
     /// centre instead of the road's `start_lateral_noise` (0.3 m), so the
@@ -439,6 +448,10 @@ fn is_zero_usize(v: &usize) -> bool {
     *v == 0
 }
 
+fn is_zero_f64(v: &f64) -> bool {
+    *v == 0.0
+}
+
 impl Default for DriveTrainConfig {
     /// The paper gives none of SVG's settings for driving, nor `σ2`, `σ3`.
     /// Each default below is the library's or a measured choice; the
@@ -592,6 +605,7 @@ impl Default for DriveTrainConfig {
             mirror_demos: false,
             lane_shift_clear_steps: 0,
             lane_shift_undriven_only: false,
+            lane_shift_min_lane_share: 0.0,
             train_start_lateral_noise: None,
             train_start_heading_noise: None,
             train_obstacle_spacing_min: None,
@@ -743,6 +757,13 @@ impl DriveTrainConfig {
         self.terminal.validate().with_context(|| "train.terminal")?;
         if let Some(rule) = &self.stall_end {
             rule.check().map_err(|e| invalid("train.stall_end", e))?;
+        }
+        let share = self.lane_shift_min_lane_share;
+        if !(0.0..=1.0).contains(&share) {
+            return Err(invalid(
+                "train.lane_shift_min_lane_share",
+                format!("must lie in [0, 1] (a share of the demonstration's steps), got {share}"),
+            ));
         }
         let f = self.policy_obs_min_std;
         if !(f.is_finite() && f > 0.0) {
@@ -1954,14 +1975,13 @@ fn with_lane_shifted(
 ) -> Result<(Array2<f64>, Array2<f64>)> {
     let world = red_drive::World::new(&run.drive)?;
     let clear = run.train.lane_shift_clear_steps;
+    let paths = replayed(run, demos, "train.lane_shift_clear_steps", "paths to move")?;
+    if main_lane_share(&run.drive, &paths) < run.train.lane_shift_min_lane_share {
+        return Ok((s, a));
+    }
     let (mut rows_s, mut rows_a) = (Vec::new(), Vec::new());
     let mut start = 0;
-    for (traj, (poses, end)) in demos.trajectories.iter().zip(replayed(
-        run,
-        demos,
-        "train.lane_shift_clear_steps",
-        "paths to move",
-    )?) {
+    for (traj, (poses, end)) in demos.trajectories.iter().zip(paths) {
         let finished = end == PathEnd::Success;
         let only = run.train.lane_shift_undriven_only;
         for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, finished, clear, only) {
@@ -1978,6 +1998,27 @@ fn with_lane_shifted(
         ndarray::concatenate(ndarray::Axis(0), &[x.view(), y.view()]).expect("same width")
     };
     Ok((cat(s, extra_s), cat(a, extra_a)))
+}
+
+/// The share of the replayed `paths`' steps spent in the lane they keep
+/// most (0 without steps).
+fn main_lane_share(road: &DriveConfig, paths: &[(Vec<CarState>, PathEnd)]) -> f64 {
+    let mut steps = [0usize; NUM_LANES];
+    for (poses, _) in paths {
+        for (all, one) in steps
+            .iter_mut()
+            .zip(red_drive::env::lane_steps(road, poses))
+        {
+            *all += one;
+        }
+    }
+    let total: usize = steps.iter().sum();
+    let most = steps.iter().copied().max().unwrap_or(0);
+    if total == 0 {
+        0.0
+    } else {
+        most as f64 / total as f64
+    }
 }
 
 /// The actions `(n, act_dim)` of trajectories of `lengths` (stacked in
@@ -3622,6 +3663,34 @@ mod tests {
             err.contains("demo.json") && err.contains("lane_shift_clear_steps"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn lane_moves_wait_for_a_demonstration_that_keeps_one_lane() {
+        let road = DriveConfig::default();
+        let demos = red_drive::expert_demos(&road, 1, 0).unwrap();
+        let n = demos.pairs().0.nrows();
+        let mut run = DriveRunConfig::new("demo.json", road.clone());
+        run.train.lane_shift_clear_steps = 60;
+        let moved = training_pairs(&run, &demos).unwrap().0.nrows();
+        assert!(moved > n);
+        // The share of the most kept lane, counted from the replayed path.
+        let paths = replayed(&run, &demos, "test", "paths").unwrap();
+        let steps = red_drive::env::lane_steps(&road, &paths[0].0);
+        assert_eq!(steps.iter().sum::<usize>(), paths[0].0.len());
+        let share = main_lane_share(&road, &paths);
+        let most = *steps.iter().max().unwrap();
+        assert!((share - most as f64 / paths[0].0.len() as f64).abs() < 1e-12);
+        assert!(share < 1.0, "the scripted expert changes lanes");
+        // At or below the share the pairs are moved; above it they are not.
+        run.train.lane_shift_min_lane_share = share;
+        assert_eq!(training_pairs(&run, &demos).unwrap().0.nrows(), moved);
+        run.train.lane_shift_min_lane_share = (share + 1.0) / 2.0;
+        assert_eq!(training_pairs(&run, &demos).unwrap().0.nrows(), n);
+        // A share outside [0, 1] is refused by name.
+        run.train.lane_shift_min_lane_share = 1.5;
+        let err = run.train.validate().unwrap_err().to_string();
+        assert!(err.contains("lane_shift_min_lane_share"), "{err}");
     }
 
     #[test]
