@@ -2,10 +2,12 @@
 """drive_paired_runs.py RUNS_DIR BASE NAME [SEEDS]: RED's final policy of the runs
 RUNS_DIR/NAME-DEMO-sK against the runs RUNS_DIR/BASE-DEMO-sK of the same demo and seed (both
 made by `red-cli drive --demo D --methods red --seed K --name X-DEMO-sK --out-dir RUNS_DIR
---train-config C`; DEMO any key, e.g. s80 for a demo of track seed 80). One table row per
+--train-config C`; DEMO is `scripted` or sN, e.g. s80 for a demo of track seed 80; NAME and
+BASE without a dash). One table row per
 demo and setting, then the paired differences (NAME minus BASE) with their standard errors,
 per demo and over all pairs. SEEDS: "0 1 2 3 4" by default. A pair is counted only when both
-runs have an eval.json."""
+runs have an eval.json; the table rows are each setting's finished runs. Runs evaluated on no
+unseen roads show `-` there and pair on the demo's road only."""
 import json, math, os, re, sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -51,8 +53,9 @@ for demo in demos:
         rv = [x for x in r if x is not None]
         uv = [x for x in u if x is not None]
         if rv:
-            print(f"| {s} | {demo} | {seeds[0]}-{seeds[-1]} | {fmt(r)} | {sum(rv)/len(rv):.1f} | "
-                  f"{min(rv):.1f} | {fmt(u)} | {sum(uv)/len(uv):.1f} |")
+            um = f"{sum(uv)/len(uv):.1f}" if uv else "-"
+            print(f"| {s} | {demo} | {' '.join(map(str, seeds))} | {fmt(r)} | {sum(rv)/len(rv):.1f} | "
+                  f"{min(rv):.1f} | {fmt(u)} | {um} |")
 print()
 print(f"paired {name} - {base}: demo road, unseen roads (s.e.)")
 everything = []
@@ -61,7 +64,8 @@ for demo, ps in list(pairs.items()) + [("all", None)]:
     if not ps:
         continue
     dr = mean_se([a[0] - b[0] for a, b in ps])
-    du = mean_se([a[1] - b[1] for a, b in ps])
-    print(f"{demo}: {len(ps)} pairs, {dr[0]:+.1f} ({dr[1]:.1f}), {du[0]:+.1f} ({du[1]:.1f})")
+    ud = [a[1] - b[1] for a, b in ps if a[1] is not None and b[1] is not None]
+    du = f"{mean_se(ud)[0]:+.1f} ({mean_se(ud)[1]:.1f})" if ud else "-"
+    print(f"{demo}: {len(ps)} pairs, {dr[0]:+.1f} ({dr[1]:.1f}), {du}")
     if demo != "all":
         everything += ps

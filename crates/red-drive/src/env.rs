@@ -382,13 +382,11 @@ pub fn lane_shifted(
     out
 }
 
-/// How many of `poses` lie in each lane (the lane nearest the car).
-pub fn lane_steps(road: &DriveConfig, poses: &[CarState]) -> [usize; NUM_LANES] {
-    let mut steps = [0; NUM_LANES];
-    for p in poses {
-        steps[road.nearest_lane(p.y)] += 1;
-    }
-    steps
+/// The lane (0-2, 0 the right-hand one) nearest the car whose observation
+/// on `road` is `obs` ([`World::observation`]: input `NUM_RAYS` is the
+/// lateral position over the road's half width).
+pub fn observed_lane(road: &DriveConfig, obs: &[f64]) -> usize {
+    road.nearest_lane(obs[NUM_RAYS] * road.half_width())
 }
 
 /// For each `t < len`, the first `s >= t` with `marked(s)`, if any.
@@ -866,6 +864,28 @@ impl Env for DriveEnv {
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[test]
+    fn the_observed_lane_is_the_lane_the_car_is_in() {
+        let road = DriveConfig::default();
+        let world = World::new(&road).unwrap();
+        let mut ranges = [0.0; NUM_RAYS];
+        let mut obs = Vec::new();
+        for lane in 0..NUM_LANES {
+            for off in [-1.5, 0.0, 1.5] {
+                let car = CarState {
+                    x: 10.0,
+                    y: road.lane_center(lane) + off,
+                    heading: 0.0,
+                    speed: 20.0,
+                };
+                world.lidar(&car, &mut ranges);
+                world.observation(&car, &ranges, &mut obs);
+                assert_eq!(observed_lane(&road, &obs), lane, "{off}");
+            }
+        }
+        // Lane 0 is the right-hand one: y < 0.
+        assert!(road.lane_center(0) < 0.0);
+    }
 
     #[test]
     fn a_road_pool_draws_the_road_from_the_reset_seed() {

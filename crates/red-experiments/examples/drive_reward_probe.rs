@@ -7,7 +7,10 @@
 //! episode) the distance, the mean reward of the episode, of its last 40
 //! steps and of its last pair, and whether the paper's terminal test
 //! penalises the ending. `PROBE_CHUNKS=1` adds, per 50 steps, the mean
-//! reward, lateral offset (m) and speed (km/h) as `reward@y/kmh`.
+//! reward, lateral offset (m) and speed (km/h) as `reward@y/kmh`. The
+//! reward is fitted on the recorded pairs only: a run whose demonstration
+//! got lane-moved pairs (`train.lane_shift_clear_steps`, a one-lane demo
+//! such as s37 at the defaults since session 59) fitted on more.
 use ndarray::Array2;
 use red_experiments::drive::{
     DriveTrainConfig, EVAL_SEED, drive_deterministic, load_demo, load_run_policy, run_reward,

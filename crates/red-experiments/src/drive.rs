@@ -231,9 +231,10 @@ pub struct DriveTrainConfig {
     /// 0.95 by default since session 59; 0 moves it whatever its lanes):
     /// a demonstrator who hardly leaves one lane says nothing of the
     /// others, one who changes lanes says where to be, and moved pairs
-    /// would outweigh that. Counted over every trajectory's replayed
-    /// steps, by the lane nearest the car ([`red_drive::env::lane_steps`]).
-    /// Of the shipped demos only s37 (97.2% in the top lane) is moved; the
+    /// would outweigh that. Counted over every trajectory's steps, by the
+    /// lane nearest the car ([`red_drive::env::observed_lane`]); no replay
+    /// is needed below the share. Of the shipped demos only s37 (97.2% in
+    /// the top lane, 2) is moved; the
     /// scripted expert, s11 and s23 train as without lane shifts. Measured
     /// on three new one-lane demos of the person-like driver (track seeds
     /// 80, 82, 92; docs/results/drive.md, session 59). Always written to
@@ -1934,13 +1935,14 @@ fn report(
 }
 
 /// The state-action pairs the methods learn from: the demonstration's
-/// (`run.demo`, read into `demos`), then its lane-moved pairs on the run's
-/// road when `train.lane_shift_clear_steps` is set, each followed by its
-/// mirror image when `train.mirror_demos` is on.
+/// (`run.demo`, read into `demos`), then its lane-moved pairs when
+/// `train.lane_shift_clear_steps` is set and the demonstration keeps one
+/// lane for `train.lane_shift_min_lane_share` of its steps, each followed
+/// by its mirror image when `train.mirror_demos` is on.
 ///
 /// # Errors
-/// With `lane_shift_clear_steps`, a trajectory that does not replay on
-/// the run's road.
+/// With lane-moved pairs, a trajectory that does not replay on the road
+/// its file names (the run's road for a file that names none).
 fn training_pairs(run: &DriveRunConfig, demos: &Demos) -> Result<(Array2<f64>, Array2<f64>)> {
     let train = &run.train;
     let (mut s, mut a) = demos.pairs();
@@ -1968,10 +1970,11 @@ fn training_pairs(run: &DriveRunConfig, demos: &Demos) -> Result<(Array2<f64>, A
     Ok((s2, a2))
 }
 
-/// `(s, a)`, the pairs of `demos` stacked in order, followed by the pairs
-/// of each trajectory moved by whole lanes on the run's road
-/// ([`red_drive::env::lane_shifted`]), each with the action of the step it
-/// was moved from.
+/// `(s, a)`, the pairs of `demos` stacked in order, followed, when the
+/// demonstration keeps one lane for `train.lane_shift_min_lane_share` of
+/// its steps, by the pairs of each trajectory moved by whole lanes on the
+/// road its file names ([`red_drive::env::lane_shifted`]), each with the
+/// action of the step it was moved from.
 fn with_lane_shifted(
     run: &DriveRunConfig,
     demos: &Demos,
@@ -1979,6 +1982,9 @@ fn with_lane_shifted(
     a: Array2<f64>,
 ) -> Result<(Array2<f64>, Array2<f64>)> {
     let road = demo_road(run, demos);
+    if main_lane_share(&road, demos).1 < run.train.lane_shift_min_lane_share {
+        return Ok((s, a));
+    }
     let world = red_drive::World::new(&road)?;
     let clear = run.train.lane_shift_clear_steps;
     let paths = replayed_on(
@@ -1988,9 +1994,6 @@ fn with_lane_shifted(
         "train.lane_shift_clear_steps",
         "paths to move",
     )?;
-    if main_lane_share(&road, &paths).1 < run.train.lane_shift_min_lane_share {
-        return Ok((s, a));
-    }
     let (mut rows_s, mut rows_a) = (Vec::new(), Vec::new());
     let mut start = 0;
     for (traj, (poses, end)) in demos.trajectories.iter().zip(paths) {
@@ -2012,16 +2015,15 @@ fn with_lane_shifted(
     Ok((cat(s, extra_s), cat(a, extra_a)))
 }
 
-/// The lane the replayed `paths` keep most and the share of their steps
-/// spent in it (0 without steps).
-fn main_lane_share(road: &DriveConfig, paths: &[(Vec<CarState>, PathEnd)]) -> (usize, f64) {
+/// The lane (0-2, 0 the right-hand one) the demonstration `demos` keeps
+/// most, driven on `road`, and the share of its steps spent in it (0
+/// without steps): the lane of each step's observation
+/// ([`red_drive::env::observed_lane`]).
+fn main_lane_share(road: &DriveConfig, demos: &Demos) -> (usize, f64) {
     let mut steps = [0usize; NUM_LANES];
-    for (poses, _) in paths {
-        for (all, one) in steps
-            .iter_mut()
-            .zip(red_drive::env::lane_steps(road, poses))
-        {
-            *all += one;
+    for traj in &demos.trajectories {
+        for obs in &traj.observations[..traj.actions.len()] {
+            steps[red_drive::env::observed_lane(road, obs)] += 1;
         }
     }
     let total: usize = steps.iter().sum();
@@ -2041,30 +2043,28 @@ fn main_lane_share(road: &DriveConfig, paths: &[(Vec<CarState>, PathEnd)]) -> (u
 
 /// What the lane shifts did to a new run's pairs (`pairs`, as
 /// [`training_pairs`] made them), when they added any.
-fn lane_shift_note(run: &DriveRunConfig, demos: &Demos, pairs: usize) -> Result<Option<String>> {
+fn lane_shift_note(run: &DriveRunConfig, demos: &Demos, pairs: usize) -> Option<String> {
     let train = &run.train;
-    let recorded = demos.num_pairs() * if train.mirror_demos { 2 } else { 1 };
-    if train.lane_shift_clear_steps == 0 || pairs <= recorded {
-        return Ok(None);
+    let copies = if train.mirror_demos { 2 } else { 1 };
+    let moved = (pairs / copies).saturating_sub(demos.num_pairs());
+    if train.lane_shift_clear_steps == 0 || moved == 0 {
+        return None;
     }
-    let road = demo_road(run, demos);
-    let paths = replayed_on(
-        &road,
-        run,
-        demos,
-        "train.lane_shift_clear_steps",
-        "paths to move",
-    )?;
-    let (lane, share) = main_lane_share(&road, &paths);
-    Ok(Some(format!(
-        "the demonstration keeps lane {lane} (of 0-{}) for {:.1}% of its steps, at least \
-         train.lane_shift_min_lane_share ({:.1}%): its lane keeping is also learnt moved into \
-         the other lanes, {} pairs added (train.lane_shift_clear_steps 0 turns this off)",
+    let (lane, share) = main_lane_share(&demo_road(run, demos), demos);
+    Some(format!(
+        "the demonstration keeps lane {lane} (lanes 0-{} from the right) for {:.1}% of its \
+         steps, at least train.lane_shift_min_lane_share ({:.1}%): its lane keeping is also \
+         learnt moved into the other lanes, {moved} pairs added{} \
+         (train.lane_shift_clear_steps 0 turns this off)",
         NUM_LANES - 1,
         100.0 * share,
         100.0 * train.lane_shift_min_lane_share,
-        pairs - recorded
-    )))
+        if copies == 2 {
+            " (and their mirror images)"
+        } else {
+            ""
+        },
+    ))
 }
 
 /// The actions `(n, act_dim)` of trajectories of `lengths` (stacked in
@@ -2730,7 +2730,7 @@ pub fn run_new(
         progress.note(n);
     }
     let (es, ea) = training_pairs(&config, demos)?;
-    if let Some(n) = lane_shift_note(&config, demos, es.nrows())? {
+    if let Some(n) = lane_shift_note(&config, demos, es.nrows()) {
         progress.note(&n);
     }
     let mut rng = Seeder::new(config.seed).rng(Stream::Init);
@@ -3664,6 +3664,7 @@ mod tests {
         let demos = red_drive::expert_demos(&DriveConfig::default(), 1, 0).unwrap();
         let (s, a) = demos.pairs();
         let mut run = DriveRunConfig::new("demo.json", DriveConfig::default());
+        run.train.lane_shift_clear_steps = 0;
         assert_eq!(
             training_pairs(&run, &demos).unwrap(),
             (s.clone(), a.clone())
@@ -3752,7 +3753,7 @@ mod tests {
     #[test]
     fn lane_moves_wait_for_a_demonstration_that_keeps_one_lane() {
         let road = DriveConfig::default();
-        let demos = red_drive::expert_demos(&road, 1, 0).unwrap();
+        let demos = red_drive::expert_demos(&road, 2, 0).unwrap();
         let n = demos.pairs().0.nrows();
         let mut run = DriveRunConfig::new("demo.json", road.clone());
         // The defaults: 60 steps clear, only a demonstration that keeps one
@@ -3762,27 +3763,62 @@ mod tests {
         run.train.lane_shift_min_lane_share = 0.0;
         let moved = training_pairs(&run, &demos).unwrap().0.nrows();
         assert!(moved > n);
-        // The share of the most kept lane, counted from the replayed path.
-        let paths = replayed(&run, &demos, "test", "paths").unwrap();
-        let steps = red_drive::env::lane_steps(&road, &paths[0].0);
-        assert_eq!(steps.iter().sum::<usize>(), paths[0].0.len());
-        let (lane, share) = main_lane_share(&road, &paths);
+        // The share of the most kept lane over both trajectories' steps,
+        // counted here from the replayed car states.
+        let mut steps = [0usize; NUM_LANES];
+        for (traj, (poses, _)) in demos
+            .trajectories
+            .iter()
+            .zip(replayed(&run, &demos, "test", "paths").unwrap())
+        {
+            for p in &poses[..traj.actions.len()] {
+                steps[road.nearest_lane(p.y)] += 1;
+            }
+        }
+        assert_eq!(steps.iter().sum::<usize>(), n);
+        let (lane, share) = main_lane_share(&road, &demos);
         let most = *steps.iter().max().unwrap();
         assert_eq!(steps[lane], most);
-        assert!((share - most as f64 / paths[0].0.len() as f64).abs() < 1e-12);
+        assert!((share - most as f64 / n as f64).abs() < 1e-12);
         assert!(share < 1.0, "the scripted expert changes lanes");
         // At or below the share the pairs are moved; above it they are not.
         run.train.lane_shift_min_lane_share = share;
         assert_eq!(training_pairs(&run, &demos).unwrap().0.nrows(), moved);
-        let note = lane_shift_note(&run, &demos, moved).unwrap().unwrap();
+        let note = lane_shift_note(&run, &demos, moved).unwrap();
         assert!(
             note.contains(&format!("keeps lane {lane} "))
-                && note.contains(&format!("{} pairs added", moved - n)),
+                && note.contains(&format!("{} pairs added (train", moved - n)),
             "{note}"
         );
+        // With mirror images the note counts the moved pairs once.
+        run.train.mirror_demos = true;
+        let note = lane_shift_note(&run, &demos, 2 * moved).unwrap();
+        assert!(
+            note.contains(&format!("{} pairs added (and their mirror", moved - n)),
+            "{note}"
+        );
+        run.train.mirror_demos = false;
         run.train.lane_shift_min_lane_share = (share + 1.0) / 2.0;
         assert_eq!(training_pairs(&run, &demos).unwrap().0.nrows(), n);
-        assert_eq!(lane_shift_note(&run, &demos, n).unwrap(), None);
+        assert_eq!(lane_shift_note(&run, &demos, n), None);
+        // The gate needs no replay: a demonstration below it trains on a
+        // road it does not fit (--other-road) as before.
+        let mut other = run.clone();
+        other.drive.track_seed += 1;
+        let mut roadless = demos.clone();
+        roadless.scenario = None;
+        assert_eq!(training_pairs(&other, &roadless).unwrap().0.nrows(), n);
+        // A --train-config without the keys keeps the defaults.
+        let c = crate::run_dir::overlay_json(
+            &DriveTrainConfig::default(),
+            r#"{"steps":100}"#,
+            Path::new("c.json"),
+        )
+        .unwrap();
+        assert_eq!(
+            (c.lane_shift_clear_steps, c.lane_shift_min_lane_share),
+            (60, 0.95)
+        );
         // A config.json made before session 59 has neither key: no moves.
         let old: DriveTrainConfig = serde_json::from_str(r#"{"steps":100}"#).unwrap();
         assert_eq!(old.lane_shift_clear_steps, 0);
@@ -3814,6 +3850,7 @@ mod tests {
         let demos = red_drive::expert_demos(&DriveConfig::default(), 1, 0).unwrap();
         let (s, a) = demos.pairs();
         let mut run = DriveRunConfig::new("demo.json", DriveConfig::default());
+        run.train.lane_shift_clear_steps = 0;
         run.train.demo_action_smoothing = 2;
         let (s2, a2) = training_pairs(&run, &demos).unwrap();
         assert_eq!(s2, s);
