@@ -2094,18 +2094,47 @@ fn smoothed_actions(lengths: &[usize], a: ArrayView2<'_, f64>, k: usize) -> Arra
     out
 }
 
-/// A fingerprint of the demonstration's pairs, so a resumed run refuses a
-/// changed file.
+/// FNV-1a over `bytes`, continuing from `h`.
+fn fnv1a(mut h: u64, bytes: impl IntoIterator<Item = u8>) -> u64 {
+    for b in bytes {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
+/// A fingerprint of the demonstration's pairs and, for a file that records
+/// its road, of that road (`;road:` and its hash), so a resumed run refuses
+/// a changed file: the road decides where a one-lane demonstration's moved
+/// pairs are made.
 fn digest(demos: &Demos) -> String {
     let (s, a) = demos.pairs();
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for v in s.iter().chain(a.iter()) {
-        for b in v.to_bits().to_le_bytes() {
-            h ^= u64::from(b);
-            h = h.wrapping_mul(0x0100_0000_01b3);
+    let h = fnv1a(
+        0xcbf2_9ce4_8422_2325,
+        s.iter()
+            .chain(a.iter())
+            .flat_map(|v| v.to_bits().to_le_bytes()),
+    );
+    let pairs = format!("{}x{}:{h:016x}", s.nrows(), s.ncols() + a.ncols());
+    match &demos.scenario {
+        Some(road) => {
+            let r = fnv1a(0xcbf2_9ce4_8422_2325, road.to_string().into_bytes());
+            format!("{pairs};road:{r:016x}")
         }
+        None => pairs,
     }
-    format!("{}x{}:{h:016x}", s.nrows(), s.ncols() + a.ncols())
+}
+
+/// Whether `now`, the digest of the demonstration as it reads today, is
+/// the one a checkpoint recorded (`then`). A checkpoint written before the
+/// digest covered the road (session 60) holds the pairs' part only, and is
+/// compared on that part.
+fn same_demo(now: &str, then: &str) -> bool {
+    if then.contains(";road:") {
+        now == then
+    } else {
+        now.split(";road:").next() == Some(then)
+    }
 }
 
 /// The seeder of one method of a run: a stream of the run's seed of its
@@ -2790,11 +2819,11 @@ pub fn resume(dir: &Path, stop: &AtomicBool, progress: &mut dyn Progress) -> Res
         ck.config.methods.len()
     ));
     let demos = Demos::read(Path::new(&ck.config.demo))?;
-    if digest(&demos) != ck.demo_digest {
+    if !same_demo(&digest(&demos), &ck.demo_digest) {
         return Err(Error::Input {
             path: ck.config.demo.clone().into(),
-            reason: "has changed since the checkpoint was written; resume needs the same \
-                     demonstration"
+            reason: "has changed since the checkpoint was written (its pairs or the road it \
+                     records); resume needs the same demonstration"
                 .into(),
         });
     }
@@ -3622,6 +3651,42 @@ mod tests {
         assert_eq!(c.unseen_track_seeds(), vec![100, 102, 103]);
         c.eval_roads = 0;
         assert!(c.unseen_track_seeds().is_empty());
+    }
+
+    #[test]
+    fn the_digest_covers_the_road_the_file_records() {
+        let road = DriveConfig {
+            track_seed: 7,
+            ..DriveConfig::default()
+        };
+        let demos = red_drive::expert_demos(&road, 1, 0).unwrap();
+        let d = digest(&demos);
+        assert!(d.contains(";road:"), "{d}");
+        assert!(same_demo(&d, &d));
+        // The same pairs on an edited road: refused.
+        let mut edited = demos.clone();
+        red_drive::scenario::set_road(
+            &mut edited,
+            &DriveConfig {
+                track_seed: 8,
+                ..road.clone()
+            },
+        )
+        .unwrap();
+        assert!(!same_demo(&digest(&edited), &d));
+        // A checkpoint written before the digest covered the road is
+        // compared on the pairs alone.
+        let pairs_only = d.split(";road:").next().unwrap();
+        assert!(same_demo(&digest(&edited), pairs_only));
+        // A file without a road has the pairs' digest only.
+        let mut roadless = demos.clone();
+        roadless.scenario = None;
+        assert_eq!(digest(&roadless), pairs_only);
+        // Changed pairs are refused either way.
+        let mut moved = demos;
+        moved.trajectories[0].actions[0][0] += 0.5;
+        assert!(!same_demo(&digest(&moved), &d));
+        assert!(!same_demo(&digest(&moved), pairs_only));
     }
 
     #[test]
