@@ -1,5 +1,5 @@
 //! Shared vocabulary of the `red` workspace: the [`Env`] trait and its
-//! [`Space`]s, the [`TimeLimit`] and [`RewardWrapper`] wrappers, the
+//! [`Space`]s, the [`TimeLimit`], [`RewardWrapper`] and [`LastAction`] wrappers, the
 //! [`RewardModel`] trait, seeding, and expert demonstrations.
 //!
 //! - [`check`]: the checker every environment of the project passes
@@ -70,7 +70,7 @@ pub use error::{Error, Result};
 pub use reward::{ClippedActions, DifferentiableReward, RewardModel};
 pub use seeding::{Seeder, Stream};
 pub use space::{BoxSpace, Space};
-pub use wrappers::{RewardWrapper, TimeLimit};
+pub use wrappers::{LastAction, RewardWrapper, TimeLimit};
 
 // The exact versions of the crates this crate's API takes and returns,
 // so that a dependant names the same types (a second version of ndarray or

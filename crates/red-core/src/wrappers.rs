@@ -188,3 +188,95 @@ impl<E: Env, R: RewardModel> Env for RewardWrapper<E, R> {
         Ok(step)
     }
 }
+
+/// Appends the last action taken, clipped into the action box, to every
+/// observation (zeros after a reset), when switched on: a policy that reads
+/// it can tell the same state met in the middle of a move from the same
+/// state met while holding still. Switched off it passes everything
+/// through unchanged, so one type serves both.
+#[derive(Debug, Clone)]
+pub struct LastAction<E> {
+    inner: E,
+    /// `Some` when on: the last action, and the extended observation space.
+    on: Option<(Vec<f64>, Space)>,
+}
+
+impl<E: Env> LastAction<E> {
+    /// Wraps `inner`; `on` switches the extension on.
+    ///
+    /// # Errors
+    /// [`Error::InvalidConfig`] when `on` and either space is not a box.
+    pub fn new(inner: E, on: bool) -> Result<Self> {
+        if !on {
+            return Ok(Self { inner, on: None });
+        }
+        let (Space::Box(obs), Space::Box(act)) = (inner.observation_space(), inner.action_space())
+        else {
+            return Err(Error::InvalidConfig {
+                field: "last action input".into(),
+                reason: "needs box observation and action spaces".into(),
+            });
+        };
+        let mut low = obs.low.clone();
+        let mut high = obs.high.clone();
+        low.extend(&act.low);
+        high.extend(&act.high);
+        let space = Space::Box(crate::BoxSpace::new(low, high)?);
+        let last = vec![0.0; act.dim()];
+        Ok(Self {
+            inner,
+            on: Some((last, space)),
+        })
+    }
+
+    /// Whether the last action is appended.
+    pub fn is_on(&self) -> bool {
+        self.on.is_some()
+    }
+
+    /// The wrapped environment.
+    pub fn inner(&self) -> &E {
+        &self.inner
+    }
+
+    /// The wrapped environment, mutably.
+    pub fn inner_mut(&mut self) -> &mut E {
+        &mut self.inner
+    }
+
+    fn extended(&self, mut obs: Vec<f64>) -> Vec<f64> {
+        if let Some((last, _)) = &self.on {
+            obs.extend(last);
+        }
+        obs
+    }
+}
+
+impl<E: Env> Env for LastAction<E> {
+    fn observation_space(&self) -> &Space {
+        match &self.on {
+            Some((_, space)) => space,
+            None => self.inner.observation_space(),
+        }
+    }
+    fn action_space(&self) -> &Space {
+        self.inner.action_space()
+    }
+    fn reset(&mut self, seed: Option<u64>) -> Result<(Vec<f64>, Info)> {
+        let (obs, info) = self.inner.reset(seed)?;
+        if let Some((last, _)) = &mut self.on {
+            last.fill(0.0);
+        }
+        Ok((self.extended(obs), info))
+    }
+    fn step(&mut self, action: &[f64]) -> Result<Step> {
+        let mut step = self.inner.step(action)?;
+        if let (Some((last, _)), Space::Box(b)) = (&mut self.on, self.inner.action_space()) {
+            for (((l, a), lo), hi) in last.iter_mut().zip(action).zip(&b.low).zip(&b.high) {
+                *l = a.max(*lo).min(*hi);
+            }
+        }
+        step.observation = self.extended(std::mem::take(&mut step.observation));
+        Ok(step)
+    }
+}

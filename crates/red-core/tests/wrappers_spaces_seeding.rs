@@ -4,8 +4,8 @@ use ndarray::{Array1, ArrayView2};
 use rand::{Rng, RngExt};
 use red_core::seeding::{Seeder, Stream};
 use red_core::{
-    BoxSpace, ClippedActions, Env, Error, Info, Result, RewardModel, RewardWrapper, Space, Step,
-    TRUE_REWARD, TimeLimit, check_env,
+    BoxSpace, ClippedActions, Env, Error, Info, LastAction, Result, RewardModel, RewardWrapper,
+    Space, Step, TRUE_REWARD, TimeLimit, check_env,
 };
 
 /// Counts up by the action; terminates when the count reaches `end`; its
@@ -154,6 +154,62 @@ fn wrapped_environments_pass_the_checker() {
     let report = check_env(&mut env, 0, 100).unwrap();
     assert!(report.info_keys.contains(&TRUE_REWARD));
     assert!(report.terminated > 0 && report.truncated > 0, "{report}");
+}
+
+#[test]
+fn last_action_is_appended_when_on_and_cleared_by_reset() {
+    let mut off = LastAction::new(Counter::new(5.0), false).unwrap();
+    assert!(!off.is_on());
+    assert_eq!(
+        off.observation_space(),
+        &Space::Box(BoxSpace::uniform(1, 0.0, 100.0))
+    );
+    assert_eq!(off.reset(None).unwrap().0, vec![0.0]);
+    assert_eq!(off.step(&[0.5]).unwrap().observation, vec![0.5]);
+
+    let mut on = LastAction::new(Counter::new(5.0), true).unwrap();
+    assert!(on.is_on());
+    assert_eq!(
+        on.observation_space(),
+        &Space::Box(BoxSpace::new(vec![0.0, 0.0], vec![100.0, 1.0]).unwrap())
+    );
+    assert_eq!(on.reset(None).unwrap().0, vec![0.0, 0.0]);
+    assert_eq!(on.step(&[0.5]).unwrap().observation, vec![0.5, 0.5]);
+    let step = on.step(&[0.25]).unwrap();
+    assert_eq!(step.observation, vec![0.75, 0.25]);
+    assert_eq!(step.reward, 2.5);
+    assert_eq!(on.reset(None).unwrap().0, vec![0.0, 0.0]);
+    // A failing step leaves the last action as it was.
+    assert!(on.step(&[3.0]).is_err());
+    assert_eq!(on.step(&[1.0]).unwrap().observation, vec![1.0, 1.0]);
+    let mut checked = TimeLimit::new(LastAction::new(Counter::new(5.0), true).unwrap(), 8).unwrap();
+    check_env(&mut checked, 0, 50).unwrap();
+}
+
+#[test]
+fn last_action_needs_box_spaces() {
+    #[derive(Debug)]
+    struct Pick(Space, Space);
+    impl Env for Pick {
+        fn observation_space(&self) -> &Space {
+            &self.0
+        }
+        fn action_space(&self) -> &Space {
+            &self.1
+        }
+        fn reset(&mut self, _seed: Option<u64>) -> Result<(Vec<f64>, Info)> {
+            Ok((vec![0.0], Info::new()))
+        }
+        fn step(&mut self, _action: &[f64]) -> Result<Step> {
+            unreachable!()
+        }
+    }
+    let pick = Pick(
+        Space::Box(BoxSpace::uniform(1, 0.0, 1.0)),
+        Space::Discrete(3),
+    );
+    let e = LastAction::new(pick, true).unwrap_err().to_string();
+    assert!(e.contains("box"), "{e}");
 }
 
 #[test]

@@ -283,8 +283,10 @@ fn hits(p1: &Pose, s1: &Cuboid, p2: &Pose, s2: &Cuboid) -> bool {
 /// mirror ([`World::mirrored`]): the lidar's rays in reverse order (the
 /// fan is symmetric about the heading), the lateral offset and the heading
 /// negated, the distance to the wall and the speed kept; the steering
-/// negated, the pedal kept. Used to double a demonstration's pairs
-/// (`train.mirror_demos` of the driving experiment).
+/// negated, the pedal kept. An observation extended by the last action
+/// (steering, pedal: [`red_core::LastAction`]) has that steering negated
+/// too. Used to double a demonstration's pairs (`train.mirror_demos` of
+/// the driving experiment).
 ///
 /// # Panics
 /// If `obs` is shorter than [`OBS_DIM`] or `act` is empty.
@@ -292,6 +294,9 @@ pub fn mirror_pair(obs: &mut [f64], act: &mut [f64]) {
     obs[..NUM_RAYS].reverse();
     obs[NUM_RAYS] = -obs[NUM_RAYS];
     obs[NUM_RAYS + 1] = -obs[NUM_RAYS + 1];
+    if let Some(steer) = obs.get_mut(OBS_DIM) {
+        *steer = -*steer;
+    }
     act[0] = -act[0];
 }
 

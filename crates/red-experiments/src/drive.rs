@@ -29,7 +29,9 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use red_core::DifferentiableReward;
 use red_core::checkpoint::load_checkpoint;
-use red_core::{DemoSource, Demos, Env, Info, RewardModel as _, Seeder, Stream, record_episode};
+use red_core::{
+    DemoSource, Demos, Env, Info, LastAction, RewardModel as _, Seeder, Stream, record_episode,
+};
 use red_drive::env::{INFO_COLLISION, INFO_SUCCESS};
 use red_drive::render::demo_path;
 use red_drive::scenario::{RoadSource, check_fits, differences, road_of};
@@ -403,6 +405,20 @@ pub struct DriveTrainConfig {
     /// it (runs made before session 45) means the hard clip they used.
     #[serde(default)]
     pub policy_obs_soft_tails: bool,
+    /// The last action taken (steering, pedal; zeros at an episode's
+    /// start) appended to the observation every method learns from and
+    /// drives with (our addition, beyond the paper's 24 numbers;
+    /// [`red_core::LastAction`]): a memoryless policy cannot tell a state
+    /// met in the middle of a lane change from the same state met while
+    /// holding the lane, and the person-like demonstrator steers in ramps.
+    /// The reward, the warm start, the BC term and the policy's input
+    /// scaling see the demonstration's pairs with the demonstrator's
+    /// previous action (moved and mirrored pairs: that of the step they
+    /// come from). A saved policy with 26 inputs drives with it wherever it
+    /// is evaluated. Always written to `config.json`; a file without it
+    /// (runs made before session 60) means off.
+    #[serde(default)]
+    pub last_action_input: bool,
     /// Floors on the policy normaliser's standard deviation for single
     /// inputs, each replacing `policy_obs_min_std` where larger (our
     /// setting, none by default). The inputs are those of
@@ -638,6 +654,7 @@ impl Default for DriveTrainConfig {
             crash_restarts: None,
             policy_obs_min_std: policy_obs_min_std_before_44(),
             policy_obs_soft_tails: true,
+            last_action_input: false,
             policy_obs_dim_floors: Vec::new(),
         }
     }
@@ -1467,16 +1484,16 @@ fn drive_with_poses<A: DriveActor + ?Sized>(
     policy: &A,
     seed: u64,
 ) -> Result<(red_core::Trajectory, red_core::EpisodeRun, Vec<CarState>)> {
-    let mut env = make_env(config)?;
+    let mut env = LastAction::new(make_env(config)?, policy.last_action_input())?;
     let (obs, _) = env.reset(Some(seed))?;
-    let mut poses = vec![*env.inner().car()];
+    let mut poses = vec![*env.inner().inner().car()];
     let (t, run) = record_episode(
         &mut env,
         obs,
         None,
         |_, obs| policy.action(obs),
         |env, _| {
-            poses.push(*env.inner().car());
+            poses.push(*env.inner().inner().car());
             Ok(())
         },
     )?;
@@ -1509,7 +1526,8 @@ fn rollout<A: DriveActor + ?Sized>(
     let mut own_return = 0.0;
     if let Some((r, term)) = reward {
         let n = observations.len();
-        let st = Array2::from_shape_fn((n, OBS_DIM), |(i, j)| observations[i][j]);
+        let width = observations.first().map_or(OBS_DIM, Vec::len);
+        let st = Array2::from_shape_fn((n, width), |(i, j)| observations[i][j]);
         let ac = Array2::from_shape_fn((n, ACT_DIM), |(i, j)| actions[i][j]);
         let (rw, _) = r.reward_and_grad(st.view(), ac.view())?;
         own_return = rw.sum();
@@ -1532,11 +1550,23 @@ pub trait DriveActor {
     /// # Errors
     /// The actor's own (a bad observation, a failing network).
     fn action(&self, obs: &[f64]) -> Result<Vec<f64>>;
+
+    /// Whether the actor reads the last action after the observation
+    /// (`train.last_action_input`).
+    fn last_action_input(&self) -> bool {
+        false
+    }
 }
 
 impl DriveActor for GaussianPolicy {
     fn action(&self, obs: &[f64]) -> Result<Vec<f64>> {
         Ok(self.act_deterministic(obs)?)
+    }
+
+    /// A policy of [`OBS_DIM`] + [`ACT_DIM`] inputs was trained with the
+    /// last action (`train.last_action_input`).
+    fn last_action_input(&self) -> bool {
+        self.obs_dim() == OBS_DIM + ACT_DIM
     }
 }
 
@@ -1623,6 +1653,10 @@ impl<'a> LookaheadActor<'a> {
 }
 
 impl DriveActor for LookaheadActor<'_> {
+    fn last_action_input(&self) -> bool {
+        self.policy().last_action_input()
+    }
+
     fn action(&self, obs: &[f64]) -> Result<Vec<f64>> {
         let policy = self.policy();
         let mu = policy.act_deterministic(obs)?;
@@ -1947,7 +1981,11 @@ fn report(
 /// (`run.demo`, read into `demos`), then its lane-moved pairs when
 /// `train.lane_shift_clear_steps` is set and the demonstration keeps one
 /// lane for `train.lane_shift_min_lane_share` of its steps, each followed
-/// by its mirror image when `train.mirror_demos` is on.
+/// by its mirror image when `train.mirror_demos` is on. With
+/// `train.last_action_input` every observation is followed by the
+/// demonstrator's action of the step before the one the pair comes from
+/// (zeros at a trajectory's first step), as [`red_core::LastAction`]
+/// extends the learner's.
 ///
 /// # Errors
 /// With lane-moved pairs, a trajectory that does not replay on the road
@@ -1958,8 +1996,15 @@ fn training_pairs(run: &DriveRunConfig, demos: &Demos) -> Result<(Array2<f64>, A
     if train.demo_action_smoothing > 0 {
         a = smoothed_actions(&demos.lengths(), a.view(), train.demo_action_smoothing);
     }
+    // The recorded step each pair comes from.
+    let mut sources: Vec<usize> = (0..s.nrows()).collect();
     if train.lane_shift_clear_steps > 0 {
-        (s, a) = with_lane_shifted(run, demos, s, a)?;
+        let moved;
+        (s, a, moved) = with_lane_shifted(run, demos, s, a)?;
+        sources.extend(moved);
+    }
+    if train.last_action_input {
+        s = with_previous_actions(&demos.lengths(), s, a.view(), &sources);
     }
     if !train.mirror_demos {
         return Ok((s, a));
@@ -1983,16 +2028,17 @@ fn training_pairs(run: &DriveRunConfig, demos: &Demos) -> Result<(Array2<f64>, A
 /// demonstration keeps one lane for `train.lane_shift_min_lane_share` of
 /// its steps, by the pairs of each trajectory moved by whole lanes on the
 /// road its file names ([`red_drive::env::lane_shifted`]), each with the
-/// action of the step it was moved from.
+/// action of the step it was moved from; and the recorded step (row of
+/// `s`) each moved pair comes from.
 fn with_lane_shifted(
     run: &DriveRunConfig,
     demos: &Demos,
     s: Array2<f64>,
     a: Array2<f64>,
-) -> Result<(Array2<f64>, Array2<f64>)> {
+) -> Result<(Array2<f64>, Array2<f64>, Vec<usize>)> {
     let road = demo_road(run, demos);
     if main_lane_share(&road, demos).1 < run.train.lane_shift_min_lane_share {
-        return Ok((s, a));
+        return Ok((s, a, Vec::new()));
     }
     let world = red_drive::World::new(&road)?;
     let clear = run.train.lane_shift_clear_steps;
@@ -2003,7 +2049,7 @@ fn with_lane_shifted(
         "train.lane_shift_clear_steps",
         "paths to move",
     )?;
-    let (mut rows_s, mut rows_a) = (Vec::new(), Vec::new());
+    let (mut rows_s, mut rows_a, mut sources) = (Vec::new(), Vec::new(), Vec::new());
     let mut start = 0;
     for (traj, (poses, end)) in demos.trajectories.iter().zip(paths) {
         let finished = end == PathEnd::Success;
@@ -2011,6 +2057,7 @@ fn with_lane_shifted(
         for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, finished, clear, only) {
             rows_s.extend(obs);
             rows_a.extend(a.row(start + t).iter().copied());
+            sources.push(start + t);
         }
         start += traj.actions.len();
     }
@@ -2021,7 +2068,36 @@ fn with_lane_shifted(
     let cat = |x: Array2<f64>, y: Array2<f64>| {
         ndarray::concatenate(ndarray::Axis(0), &[x.view(), y.view()]).expect("same width")
     };
-    Ok((cat(s, extra_s), cat(a, extra_a)))
+    Ok((cat(s, extra_s), cat(a, extra_a), sources))
+}
+
+/// `s` with the previous action appended to each row: for row `i`, which
+/// comes from recorded step `sources[i]`, the action of the recorded step
+/// before it (a row of `a`, clipped to the box the environment executes),
+/// or zeros at the first step of a trajectory (`lengths`, in order).
+fn with_previous_actions(
+    lengths: &[usize],
+    s: Array2<f64>,
+    a: ndarray::ArrayView2<'_, f64>,
+    sources: &[usize],
+) -> Array2<f64> {
+    let mut firsts = vec![false; lengths.iter().sum()];
+    let mut start = 0;
+    for &len in lengths {
+        if let Some(f) = firsts.get_mut(start) {
+            *f = true;
+        }
+        start += len;
+    }
+    let prev = Array2::from_shape_fn((s.nrows(), ACT_DIM), |(i, j)| {
+        let k = sources[i];
+        if firsts[k] {
+            0.0
+        } else {
+            a[[k - 1, j]].clamp(-1.0, 1.0)
+        }
+    });
+    ndarray::concatenate(ndarray::Axis(1), &[s.view(), prev.view()]).expect("same rows")
 }
 
 /// The lane (0-2, 0 the right-hand one) the demonstration `demos` keeps
@@ -2254,7 +2330,8 @@ fn fit_reward(
 
 fn stack(rows: &[(Vec<f64>, Vec<f64>)]) -> (Array2<f64>, Array2<f64>) {
     let n = rows.len();
-    let s = Array2::from_shape_fn((n, OBS_DIM), |(i, j)| rows[i].0[j]);
+    let width = rows.first().map_or(OBS_DIM, |r| r.0.len());
+    let s = Array2::from_shape_fn((n, width), |(i, j)| rows[i].0[j]);
     let a = Array2::from_shape_fn((n, ACT_DIM), |(i, j)| rows[i].1[j]);
     (s, a)
 }
@@ -2489,6 +2566,7 @@ fn train_method(
         stop,
         progress,
     };
+    let env = LastAction::new(env, cfg.last_action_input)?;
     let mut env = StallEnd::new(env, cfg.stall_end);
     let flow = svg
         .train_with(&mut env, cfg.steps, None, &term, rng, &mut hooks)
@@ -2773,8 +2851,13 @@ pub fn run_new(
     }
     let mut rng = Seeder::new(config.seed).rng(Stream::Init);
     let norm = policy_normalizer(&config.train, es.view())?;
-    let mut policy =
-        GaussianPolicy::new(&config.train.policy, OBS_DIM, ACT_DIM, Some(norm), &mut rng)?;
+    let mut policy = GaussianPolicy::new(
+        &config.train.policy,
+        es.ncols(),
+        ACT_DIM,
+        Some(norm),
+        &mut rng,
+    )?;
     behavior_clone(
         &mut policy,
         es.view(),
@@ -3757,6 +3840,84 @@ mod tests {
             red_drive::env::mirror_pair(&mut o, &mut u);
             assert_eq!((o, u), (s.row(i).to_vec(), a.row(i).to_vec()));
         }
+    }
+
+    #[test]
+    fn with_the_last_action_each_pair_reads_the_demonstrators_previous_action() {
+        let road = DriveConfig::default();
+        let demos = red_drive::expert_demos(&road, 2, 0).unwrap();
+        let lengths = demos.lengths();
+        let (s, a) = demos.pairs();
+        let n = s.nrows();
+        let mut run = DriveRunConfig::new("demo.json", road.clone());
+        run.train.lane_shift_min_lane_share = 0.0;
+        let (plain_s, plain_a) = training_pairs(&run, &demos).unwrap();
+        run.train.last_action_input = true;
+        let (s2, a2) = training_pairs(&run, &demos).unwrap();
+        assert_eq!(a2, plain_a);
+        assert_eq!(s2.ncols(), OBS_DIM + ACT_DIM);
+        assert_eq!(s2.slice(ndarray::s![.., ..OBS_DIM]), plain_s);
+        // Recorded pairs: zeros at each trajectory's first step, else the
+        // step before's action.
+        let second = lengths[0];
+        for i in 0..n {
+            let prev = s2.slice(ndarray::s![i, OBS_DIM..]).to_vec();
+            if i == 0 || i == second {
+                assert_eq!(prev, vec![0.0; ACT_DIM], "row {i}");
+            } else {
+                let want: Vec<f64> = a.row(i - 1).iter().map(|v| v.clamp(-1.0, 1.0)).collect();
+                assert_eq!(prev, want, "row {i}");
+            }
+        }
+        // Moved pairs: the previous action of the step they were moved
+        // from, found here by the moved observation's action and place.
+        assert!(s2.nrows() > n);
+        let with_prev: Vec<Vec<f64>> = (0..n).map(|i| s2.row(i).to_vec()).collect();
+        for i in n..s2.nrows() {
+            let prev = s2.slice(ndarray::s![i, OBS_DIM..]).to_vec();
+            assert!(
+                (0..n).any(|k| a.row(k) == a2.row(i) && with_prev[k][OBS_DIM..] == prev[..]),
+                "moved row {i}"
+            );
+        }
+        // Mirrored: the previous steering is negated with the rest.
+        run.train.lane_shift_clear_steps = 0;
+        run.train.mirror_demos = true;
+        let (s3, _) = training_pairs(&run, &demos).unwrap();
+        for i in 1..n {
+            assert_eq!(s3[[2 * i + 1, OBS_DIM]], -s2[[i, OBS_DIM]]);
+            assert_eq!(s3[[2 * i + 1, OBS_DIM + 1]], s2[[i, OBS_DIM + 1]]);
+        }
+    }
+
+    #[test]
+    fn a_policy_with_the_last_action_drives_with_it_and_reads_it_back() {
+        use red_rl::policy::GaussianPolicyConfig;
+        let road = DriveConfig::default();
+        let mut rng = Seeder::new(0).rng(Stream::Init);
+        let cfg = GaussianPolicyConfig::default();
+        let plain = GaussianPolicy::new(&cfg, OBS_DIM, ACT_DIM, None, &mut rng).unwrap();
+        let with = GaussianPolicy::new(&cfg, OBS_DIM + ACT_DIM, ACT_DIM, None, &mut rng).unwrap();
+        assert!(!plain.last_action_input() && with.last_action_input());
+        let (t, _) = drive_deterministic(&road, &with, EVAL_SEED).unwrap();
+        assert!(t.actions.len() > 1);
+        assert_eq!(t.observations[0].len(), OBS_DIM + ACT_DIM);
+        assert_eq!(t.observations[0][OBS_DIM..], [0.0, 0.0]);
+        for k in 1..t.actions.len() {
+            let want: Vec<f64> = t.actions[k - 1]
+                .iter()
+                .map(|v| v.clamp(-1.0, 1.0))
+                .collect();
+            assert_eq!(t.observations[k][OBS_DIM..], want[..], "step {k}");
+        }
+        let (t, _) = drive_deterministic(&road, &plain, EVAL_SEED).unwrap();
+        assert_eq!(t.observations[0].len(), OBS_DIM);
+        // A config.json of before session 60 has no key: off. The key is
+        // always written.
+        let old: DriveTrainConfig = serde_json::from_str(r#"{"steps":100}"#).unwrap();
+        assert!(!old.last_action_input);
+        let text = serde_json::to_string(&DriveTrainConfig::default()).unwrap();
+        assert!(text.contains(r#""last_action_input":"#), "{text}");
     }
 
     #[test]
