@@ -49,6 +49,10 @@ use crate::{Error, Result};
 pub use red_core::DifferentiableReward;
 
 /// Whether a weight is 0 (a setting that is off is not written).
+fn default_spatial_smooth_std() -> f64 {
+    0.1
+}
+
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
@@ -146,6 +150,20 @@ pub struct SvgConfig {
     /// written, so files of runs without it read in builds before it).
     #[serde(skip_serializing_if = "is_zero")]
     pub smooth_weight: f64,
+    /// Weight of a spatial smoothness term (our addition, the other term
+    /// of Mysore et al. 2021): `spatial_smooth_weight * mean ||mu(x) -
+    /// mu(x + eps)||^2` over the policy batch's states `x` (as the policy
+    /// reads them, after its input normaliser), `eps` drawn from a normal
+    /// of standard deviation `spatial_smooth_std` per input. It charges a
+    /// policy whose mean action moves much between nearby states. 0: off
+    /// (no number is drawn, and not written).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub spatial_smooth_weight: f64,
+    /// The noise of `spatial_smooth_weight`, in the policy's normalised
+    /// input units (standard deviations of the demonstration's states
+    /// when the policy has a normaliser).
+    #[serde(default = "default_spatial_smooth_std")]
+    pub spatial_smooth_std: f64,
     /// Weight of a self-imitation term (our addition, after Oh et al.
     /// 2018, "Self-Imitation Learning"): the learner keeps its
     /// `sil_episodes` training episodes of highest own return (the
@@ -206,6 +224,8 @@ impl Default for SvgConfig {
             bc_weight: 0.0,
             noise_rho: 0.0,
             smooth_weight: 0.0,
+            spatial_smooth_weight: 0.0,
+            spatial_smooth_std: default_spatial_smooth_std(),
             sil_weight: 0.0,
             sil_episodes: 4,
             value_nstep: 1,
@@ -292,6 +312,17 @@ impl SvgConfig {
                 "bc_weight",
                 format!("must be finite and >= 0, got {}", self.bc_weight),
             );
+        }
+        for (field, v) in [
+            ("spatial_smooth_weight", self.spatial_smooth_weight),
+            ("spatial_smooth_std", self.spatial_smooth_std),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::InvalidConfig {
+                    field: field.into(),
+                    reason: format!("must be finite and >= 0, got {v}"),
+                });
+            }
         }
         if !(self.smooth_weight.is_finite() && self.smooth_weight >= 0.0) {
             return bad(
@@ -915,7 +946,7 @@ impl Svg1 {
         reward: &dyn DifferentiableReward,
         bc: Option<(&Array2<f64>, &Array2<f64>)>,
     ) -> Result<f64> {
-        self.update_policy_imitating(batch, inputs, reward, bc, None)
+        self.update_policy_imitating(batch, inputs, reward, bc, None, None)
     }
 
     /// [`Svg1::update_policy_bc`] with an optional self-imitation batch
@@ -927,6 +958,7 @@ impl Svg1 {
         reward: &dyn DifferentiableReward,
         bc: Option<(&Array2<f64>, &Array2<f64>)>,
         sil: Option<&SilBatch>,
+        spatial_noise: Option<&Array2<f32>>,
     ) -> Result<f64> {
         let (obj, mut grads) = self.policy_objective(batch, inputs, reward)?;
         if !grads.is_finite() || !obj.is_finite() {
@@ -966,6 +998,11 @@ impl Svg1 {
         }
         if self.config.smooth_weight > 0.0 {
             self.add_smoothness_grad(batch, &mut grads)?;
+        }
+        if let Some(eps) = spatial_noise
+            && self.config.spatial_smooth_weight > 0.0
+        {
+            self.add_spatial_smoothness_grad(batch, eps, &mut grads)?;
         }
         clip_grad_norm(&mut grads, self.config.max_grad_norm);
         if let Some(lr1) = self.config.policy_lr_final {
@@ -1027,6 +1064,33 @@ impl Svg1 {
         Ok(())
     }
 
+    /// Adds to `grads` the gradient of the spatial smoothness term
+    /// (`spatial_smooth_weight`) on `batch`'s states, moved by `eps` in
+    /// the policy's normalised input.
+    fn add_spatial_smoothness_grad(
+        &self,
+        batch: &SvgBatch,
+        eps: &Array2<f32>,
+        grads: &mut Gradients,
+    ) -> Result<()> {
+        let x = self.policy.prepare_obs(batch.states.view())?;
+        let x_near = &x + eps;
+        let (mut tape, mut tape_near) = (Tape::new(), Tape::new());
+        let dist = self.policy.distribution_tape(x.view(), &mut tape)?;
+        let dist_near = self
+            .policy
+            .distribution_tape(x_near.view(), &mut tape_near)?;
+        let w = 2.0 * self.config.spatial_smooth_weight / batch.states.nrows() as f64;
+        let d_mean = (&dist.mean - &dist_near.mean).mapv(|v| w * v);
+        let d_ls = Array2::<f64>::zeros(d_mean.raw_dim());
+        self.policy
+            .backward_params(&tape, &dist, d_mean.view(), d_ls.view(), grads);
+        let d_near = d_mean.mapv(|v| -v);
+        self.policy
+            .backward_params(&tape_near, &dist_near, d_near.view(), d_ls.view(), grads);
+        Ok(())
+    }
+
     /// One round of updates (model, value, and the policy when
     /// `with_policy`) on fresh minibatches.
     ///
@@ -1085,12 +1149,19 @@ impl Svg1 {
                 (_, false) => None,
             };
             let sil = self.sil_batch(bs, rng)?;
+            let sd = self.config.spatial_smooth_std;
+            let spatial = (self.config.spatial_smooth_weight > 0.0).then(|| {
+                Array2::from_shape_fn((b.states.nrows(), self.policy.obs_dim()), |_| {
+                    (sd * rng.sample::<f64, _>(rand_distr::StandardNormal)) as f32
+                })
+            });
             let o = self.update_policy_imitating(
                 &b,
                 &inputs,
                 reward,
                 bc.as_ref().map(|(s, a)| (s, a)),
                 sil.as_ref(),
+                spatial.as_ref(),
             )?;
             Some(o)
         } else {
