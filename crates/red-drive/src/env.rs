@@ -330,7 +330,10 @@ pub fn lane_shifted(
     clear_steps: usize,
     undriven_only: bool,
 ) -> Vec<(i64, usize, Vec<f64>)> {
-    let n = poses.len().saturating_sub(1);
+    if poses.is_empty() {
+        return Vec::new();
+    }
+    let n = poses.len() - 1;
     let road = world.config();
     let (lane, hw) = (road.lane_width, road.half_width());
     // For each step, the first one from it on at which the recorded path
@@ -869,6 +872,20 @@ impl Env for DriveEnv {
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[test]
+    fn no_poses_move_to_nothing() {
+        let world = World::new(&DriveConfig::default()).unwrap();
+        assert!(lane_shifted(&world, &[], true, 60, false).is_empty());
+        let start = CarState {
+            x: 0.0,
+            y: 0.0,
+            heading: 0.0,
+            speed: 20.0,
+        };
+        // One pose has no action, so no step to move.
+        assert!(lane_shifted(&world, &[start], true, 0, false).is_empty());
+    }
+
     #[test]
     fn the_observed_lane_is_the_lane_the_car_is_in() {
         let road = DriveConfig::default();

@@ -797,6 +797,14 @@ impl DriveTrainConfig {
                 format!("must lie in [0, 1] (a share of the demonstration's steps), got {share}"),
             ));
         }
+        if self.lane_shift_undriven_only && self.lane_shift_clear_steps == 0 {
+            return Err(invalid(
+                "train.lane_shift_undriven_only",
+                "moves pairs only with lane shifts on: set train.lane_shift_clear_steps \
+                 (60 by default) or drop lane_shift_undriven_only"
+                    .into(),
+            ));
+        }
         let f = self.policy_obs_min_std;
         if !(f.is_finite() && f > 0.0) {
             return Err(invalid(
@@ -3734,6 +3742,21 @@ mod tests {
         assert_eq!(c.unseen_track_seeds(), vec![100, 102, 103]);
         c.eval_roads = 0;
         assert!(c.unseen_track_seeds().is_empty());
+    }
+
+    #[test]
+    fn undriven_only_without_lane_shifts_is_refused() {
+        let mut c = DriveTrainConfig {
+            lane_shift_undriven_only: true,
+            ..DriveTrainConfig::default()
+        };
+        c.validate().unwrap();
+        c.lane_shift_clear_steps = 0;
+        let e = c.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("lane_shift_undriven_only") && e.contains("lane_shift_clear_steps"),
+            "{e}"
+        );
     }
 
     #[test]
