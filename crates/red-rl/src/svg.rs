@@ -1048,19 +1048,29 @@ impl Svg1 {
         let x_next = self
             .policy
             .prepare_obs(batch.next_states.select(Axis(0), &live).view())?;
-        let (mut tape, mut tape_next) = (Tape::new(), Tape::new());
-        let dist = self.policy.distribution_tape(x.view(), &mut tape)?;
-        let dist_next = self
-            .policy
-            .distribution_tape(x_next.view(), &mut tape_next)?;
         let w = 2.0 * self.config.smooth_weight / batch.states.nrows() as f64;
-        let d_mean = (&dist.mean - &dist_next.mean).mapv(|v| w * v);
+        self.add_pull_together_grad(&x, &x_next, w, grads)
+    }
+
+    /// Adds to `grads` the gradient of `w / 2 * sum ||mu(x) - mu(y)||^2`
+    /// over the rows of the policy inputs `x` and `y` (both sides move).
+    fn add_pull_together_grad(
+        &self,
+        x: &Array2<f32>,
+        y: &Array2<f32>,
+        w: f64,
+        grads: &mut Gradients,
+    ) -> Result<()> {
+        let (mut tape, mut tape_y) = (Tape::new(), Tape::new());
+        let dist = self.policy.distribution_tape(x.view(), &mut tape)?;
+        let dist_y = self.policy.distribution_tape(y.view(), &mut tape_y)?;
+        let d_mean = (&dist.mean - &dist_y.mean).mapv(|v| w * v);
         let d_ls = Array2::<f64>::zeros(d_mean.raw_dim());
         self.policy
             .backward_params(&tape, &dist, d_mean.view(), d_ls.view(), grads);
-        let d_next = d_mean.mapv(|v| -v);
+        let d_y = d_mean.mapv(|v| -v);
         self.policy
-            .backward_params(&tape_next, &dist_next, d_next.view(), d_ls.view(), grads);
+            .backward_params(&tape_y, &dist_y, d_y.view(), d_ls.view(), grads);
         Ok(())
     }
 
@@ -1075,20 +1085,8 @@ impl Svg1 {
     ) -> Result<()> {
         let x = self.policy.prepare_obs(batch.states.view())?;
         let x_near = &x + eps;
-        let (mut tape, mut tape_near) = (Tape::new(), Tape::new());
-        let dist = self.policy.distribution_tape(x.view(), &mut tape)?;
-        let dist_near = self
-            .policy
-            .distribution_tape(x_near.view(), &mut tape_near)?;
         let w = 2.0 * self.config.spatial_smooth_weight / batch.states.nrows() as f64;
-        let d_mean = (&dist.mean - &dist_near.mean).mapv(|v| w * v);
-        let d_ls = Array2::<f64>::zeros(d_mean.raw_dim());
-        self.policy
-            .backward_params(&tape, &dist, d_mean.view(), d_ls.view(), grads);
-        let d_near = d_mean.mapv(|v| -v);
-        self.policy
-            .backward_params(&tape_near, &dist_near, d_near.view(), d_ls.view(), grads);
-        Ok(())
+        self.add_pull_together_grad(&x, &x_near, w, grads)
     }
 
     /// One round of updates (model, value, and the policy when
