@@ -179,7 +179,7 @@ fn last_action_is_appended_when_on_and_cleared_by_reset() {
     assert_eq!(step.observation, vec![0.75, 0.25]);
     assert_eq!(step.reward, 2.5);
     assert_eq!(on.reset(None).unwrap().0, vec![0.0, 0.0]);
-    // A failing step leaves the last action as it was.
+    // A step the inner environment refuses is an error through the wrapper.
     assert!(on.step(&[3.0]).is_err());
     assert_eq!(on.step(&[1.0]).unwrap().observation, vec![1.0, 1.0]);
     let mut checked = TimeLimit::new(LastAction::new(Counter::new(5.0), true).unwrap(), 8).unwrap();

@@ -2,15 +2,16 @@
 //! per run folder) on the first run's demo road and unseen roads, with the
 //! evaluation's episodes, and each policy alone for comparison.
 //! `cargo run --release -p red-experiments --example drive_ensemble -- DIR...`
-use red_core::{Env, record_episode};
+use red_core::{Env, LastAction, record_episode};
 use red_drive::{DriveConfig, make_env};
-use red_experiments::drive::{EVAL_SEED, UNSEEN_FIRST_TRACK_SEED, load_run_policy};
+use red_experiments::drive::{DriveActor, EVAL_SEED, UNSEEN_FIRST_TRACK_SEED, load_run_policy};
 use red_rl::policy::GaussianPolicy;
 
 type AnyResult<T> = Result<T, Box<dyn std::error::Error>>;
 
 fn distance(road: &DriveConfig, policies: &[&GaussianPolicy], seed: u64) -> AnyResult<f64> {
-    let mut env = make_env(road)?;
+    // Every policy reads the same observation (main refuses a mix).
+    let mut env = LastAction::new(make_env(road)?, policies[0].last_action_input())?;
     let (obs, _) = env.reset(Some(seed))?;
     let (_, run) = record_episode(
         &mut env,
@@ -60,6 +61,16 @@ fn main() -> AnyResult<()> {
     }
     let road = loaded[0].0.drive.clone();
     let policies: Vec<&GaussianPolicy> = loaded.iter().map(|(_, p)| p).collect();
+    if policies
+        .iter()
+        .any(|p| p.last_action_input() != policies[0].last_action_input())
+    {
+        return Err(
+            "the runs differ in train.last_action_input: their policies read \
+                    different observations"
+                .into(),
+        );
+    }
     for (d, p) in dirs.iter().zip(&policies) {
         let (a, b) = report(&road, &[p])?;
         println!("{d}: {a:.1} | {b:.1}");

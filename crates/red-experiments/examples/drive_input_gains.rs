@@ -1,5 +1,7 @@
 //! Diagnosis: how strongly a saved final RED policy's steering responds to
-//! each of its 24 inputs. For each input: the demonstration's standard
+//! each of its 24 observation inputs (a policy that also reads the last
+//! action, `train.last_action_input`, has two more, left out here). For
+//! each input: the demonstration's standard
 //! deviation (the policy normaliser's, before any floor; over the demo's
 //! states and their mirror images when the run mirrored them), the divisor the
 //! normaliser uses (after the floors), and the median over states of

@@ -34,6 +34,13 @@ fn main() -> AnyResult<()> {
     let mut road = None;
     for d in runs {
         let (run, policy) = load_run_policy(std::path::Path::new(d), "red", false)?;
+        if run.train.last_action_input {
+            return Err(format!(
+                "{d}: its policy read the last action (train.last_action_input); this probe \
+                 fits rewards on the recorded 24-number observations"
+            )
+            .into());
+        }
         if run.train.kernel_pca.is_some() {
             return Err(
                 format!("{d}: RED fitted kernel PCA there; this probe fits RND rewards").into(),

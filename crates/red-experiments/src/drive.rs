@@ -188,7 +188,8 @@ pub struct DriveTrainConfig {
     /// Also learn from the demonstration seen in a mirror (our addition,
     /// off by default): every pair is added a second time with left and
     /// right swapped ([`red_drive::env::mirror_pair`]: rays reversed,
-    /// lateral offset, heading and steering negated), a pair of the same
+    /// lateral offset, heading, steering and any previous steering
+    /// (`last_action_input`) negated), a pair of the same
     /// road with every obstacle in the other outer lane. The road is
     /// symmetric about its centre line, so the mirrored pairs are
     /// expert-like driving on roads the demonstration never saw. Every
@@ -414,8 +415,15 @@ pub struct DriveTrainConfig {
     /// The reward, the warm start, the BC term and the policy's input
     /// scaling see the demonstration's pairs with the demonstrator's
     /// previous action (moved and mirrored pairs: that of the step they
-    /// come from). A saved policy with 26 inputs drives with it wherever it
-    /// is evaluated. Always written to `config.json`; a file without it
+    /// come from; with `demo_action_smoothing`, the smoothed action, as the
+    /// learner's own last action is the one it drove). With
+    /// `reward_on_states` the reward's states include it. A saved policy
+    /// with 26 inputs (inputs 24 and 25 the last steering and pedal, which
+    /// `policy_obs_dim_floors` may name) drives with it wherever it is
+    /// evaluated. Measured on RED, seeds 0-4 (docs/results/drive.md,
+    /// session 60): -8.2 points of the demo's road (s.e. 6.1), -4.0 of
+    /// unseen roads (4.7); a policy can keep doing what it did and drift
+    /// into a wall. Always written to `config.json`; a file without it
     /// (runs made before session 60) means off.
     #[serde(default)]
     pub last_action_input: bool,
@@ -812,15 +820,16 @@ impl DriveTrainConfig {
                 format!("must be finite and > 0, got {f}"),
             ));
         }
+        let inputs = OBS_DIM + if self.last_action_input { ACT_DIM } else { 0 };
         for (i, d) in self.policy_obs_dim_floors.iter().enumerate() {
             let field = format!("train.policy_obs_dim_floors[{i}]");
-            if d.dim >= OBS_DIM {
+            if d.dim >= inputs {
                 return Err(invalid(
                     &field,
                     format!(
-                        "dim {} is out of range: the observation has inputs 0-{}",
+                        "dim {} is out of range: the policy has inputs 0-{}",
                         d.dim,
-                        OBS_DIM - 1
+                        inputs - 1
                     ),
                 ));
             }
@@ -1471,8 +1480,10 @@ fn terminal_penalty(t: &TerminalHeuristic, final_reward: f64, info: &Info, rule:
 }
 
 /// Drives `policy`'s mean action on `config`'s road from reset seed
-/// `seed` (the evaluation's way): the episode's observations, actions and
-/// true rewards, and its summary (`true_return` is the distance).
+/// `seed` (the evaluation's way): the episode's observations (followed by
+/// the last action for a policy that reads it,
+/// [`DriveActor::last_action_input`]), actions and true rewards, and its
+/// summary (`true_return` is the distance).
 ///
 /// # Errors
 /// A road that cannot be built; a policy that fails on an observation.
@@ -2187,10 +2198,10 @@ fn fnv1a(mut h: u64, bytes: impl IntoIterator<Item = u8>) -> u64 {
     h
 }
 
-/// A fingerprint of the demonstration's pairs and, for a file that records
-/// its road, of that road (`;road:` and its hash), so a resumed run refuses
-/// a changed file: the road decides where a one-lane demonstration's moved
-/// pairs are made.
+/// A fingerprint of the demonstration's pairs and of the road its file
+/// records (`;road:` and its hash, or `;road:none`), so a resumed run
+/// refuses a changed file: the road decides where a one-lane
+/// demonstration's moved pairs are made.
 fn digest(demos: &Demos) -> String {
     let (s, a) = demos.pairs();
     let h = fnv1a(
@@ -2205,7 +2216,7 @@ fn digest(demos: &Demos) -> String {
             let r = fnv1a(0xcbf2_9ce4_8422_2325, road.to_string().into_bytes());
             format!("{pairs};road:{r:016x}")
         }
-        None => pairs,
+        None => format!("{pairs};road:none"),
     }
 }
 
@@ -3784,10 +3795,14 @@ mod tests {
         // compared on the pairs alone.
         let pairs_only = d.split(";road:").next().unwrap();
         assert!(same_demo(&digest(&edited), pairs_only));
-        // A file without a road has the pairs' digest only.
+        // A file without a road says so: a road written into it later is
+        // a change.
         let mut roadless = demos.clone();
         roadless.scenario = None;
-        assert_eq!(digest(&roadless), pairs_only);
+        let none = digest(&roadless);
+        assert_eq!(none, format!("{pairs_only};road:none"));
+        assert!(!same_demo(&d, &none) && !same_demo(&none, &d));
+        assert!(same_demo(&none, pairs_only));
         // Changed pairs are refused either way.
         let mut moved = demos;
         moved.trajectories[0].actions[0][0] += 0.5;
@@ -3892,17 +3907,38 @@ mod tests {
                 assert_eq!(prev, want, "row {i}");
             }
         }
-        // Moved pairs: the previous action of the step they were moved
-        // from, found here by the moved observation's action and place.
-        assert!(s2.nrows() > n);
-        let with_prev: Vec<Vec<f64>> = (0..n).map(|i| s2.row(i).to_vec()).collect();
-        for i in n..s2.nrows() {
-            let prev = s2.slice(ndarray::s![i, OBS_DIM..]).to_vec();
-            assert!(
-                (0..n).any(|k| a.row(k) == a2.row(i) && with_prev[k][OBS_DIM..] == prev[..]),
-                "moved row {i}"
-            );
+        // Moved pairs, in red-drive's order trajectory by trajectory: the
+        // previous action of the recorded step each was moved from.
+        let world = red_drive::World::new(&road).unwrap();
+        let mut i = n;
+        let mut start = 0;
+        for (traj, (poses, end)) in demos
+            .trajectories
+            .iter()
+            .zip(replayed(&run, &demos, "test", "paths").unwrap())
+        {
+            let finished = end == PathEnd::Success;
+            for (_, t, _) in red_drive::env::lane_shifted(&world, &poses, finished, 60, false) {
+                let want: Vec<f64> = if t == 0 {
+                    vec![0.0; ACT_DIM]
+                } else {
+                    a.row(start + t - 1)
+                        .iter()
+                        .map(|v| v.clamp(-1.0, 1.0))
+                        .collect()
+                };
+                assert_eq!(
+                    s2.slice(ndarray::s![i, OBS_DIM..]).to_vec(),
+                    want,
+                    "moved row {i}"
+                );
+                assert_eq!(a2.row(i), a.row(start + t), "moved row {i}");
+                i += 1;
+            }
+            start += traj.actions.len();
         }
+        assert!(i > n, "some pairs are moved");
+        assert_eq!(i, s2.nrows());
         // Mirrored: the previous steering is negated with the rest.
         run.train.lane_shift_clear_steps = 0;
         run.train.mirror_demos = true;

@@ -48,11 +48,18 @@ use crate::{Error, Result};
 // SVG(1) users have always found it.
 pub use red_core::DifferentiableReward;
 
-/// Whether a weight is 0 (a setting that is off is not written).
+/// The noise of the spatial smoothness term by default.
 fn default_spatial_smooth_std() -> f64 {
     0.1
 }
 
+/// Whether `spatial_smooth_std` is the default (then not written, so that
+/// files of runs without the term read in builds before it).
+fn is_default_spatial_smooth_std(v: &f64) -> bool {
+    *v == default_spatial_smooth_std()
+}
+
+/// Whether a weight is 0 (a setting that is off is not written).
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
@@ -155,14 +162,19 @@ pub struct SvgConfig {
     /// mu(x + eps)||^2` over the policy batch's states `x` (as the policy
     /// reads them, after its input normaliser), `eps` drawn from a normal
     /// of standard deviation `spatial_smooth_std` per input. It charges a
-    /// policy whose mean action moves much between nearby states. 0: off
-    /// (no number is drawn, and not written).
+    /// policy whose mean action moves much between nearby states. Applied
+    /// by [`Svg1::update`], which draws the noise, not by the lower-level
+    /// [`Svg1::update_policy`]. 0: off (no number is drawn, and not
+    /// written).
     #[serde(skip_serializing_if = "is_zero")]
     pub spatial_smooth_weight: f64,
     /// The noise of `spatial_smooth_weight`, in the policy's normalised
     /// input units (standard deviations of the demonstration's states
     /// when the policy has a normaliser).
-    #[serde(default = "default_spatial_smooth_std")]
+    #[serde(
+        default = "default_spatial_smooth_std",
+        skip_serializing_if = "is_default_spatial_smooth_std"
+    )]
     pub spatial_smooth_std: f64,
     /// Weight of a self-imitation term (our addition, after Oh et al.
     /// 2018, "Self-Imitation Learning"): the learner keeps its
@@ -950,7 +962,9 @@ impl Svg1 {
     }
 
     /// [`Svg1::update_policy_bc`] with an optional self-imitation batch
-    /// `(states, actions, mask)` weighted by `sil_weight`.
+    /// `(states, actions, mask)` weighted by `sil_weight`, and the noise
+    /// of the spatial smoothness term (`spatial_smooth_weight`), one row
+    /// per state of `batch` in the policy's normalised input.
     fn update_policy_imitating(
         &mut self,
         batch: &SvgBatch,

@@ -950,8 +950,8 @@ fn the_smoothness_term_brings_consecutive_actions_together() {
 /// The spatial smoothness term makes the mean action move less between
 /// nearby states: after the same updates, `mean ||mu(s) - mu(s + d)||^2`
 /// over replayed states moved by small fixed offsets `d` is far smaller
-/// with the term than without; off, no number is drawn for it (the same
-/// run as before the term existed); negative settings are refused.
+/// with the term than without; it is off by default and then not written;
+/// negative settings are refused.
 #[test]
 fn the_spatial_smoothness_term_flattens_the_policy_around_its_states() {
     use rand::{RngExt, SeedableRng};
@@ -987,33 +987,18 @@ fn the_spatial_smoothness_term_flattens_the_policy_around_its_states() {
                 .unwrap(),
         )
     };
-    let (plain, a_plain) = run(0.0);
+    let (plain, _) = run(0.0);
     let (smooth, _) = run(100.0);
     assert!(
         smooth < 0.2 * plain,
         "spread {plain} without the term, {smooth} with it"
     );
-    // Off by default: a default config gives the run without the term.
-    let config = small_config();
-    assert_eq!(config.spatial_smooth_weight, 0.0);
-    let (mut svg, mut rng) = fresh(
-        6,
-        &SvgConfig {
-            policy_lr: 1e-2,
-            ..config
-        },
-    );
-    train_plain(&mut svg, 90, &mut rng);
-    let b = svg.sample(64, &mut rng).unwrap();
-    for _ in 0..60 {
-        svg.update(&ReachReward, true, &mut rng).unwrap();
-    }
-    assert_eq!(
-        svg.policy()
-            .act_deterministic(&b.states.row(0).to_vec())
-            .unwrap(),
-        a_plain
-    );
+    // Off by default, and its noise setting is not written while it is
+    // the default (files of runs without the term read in builds before
+    // it).
+    assert_eq!(small_config().spatial_smooth_weight, 0.0);
+    let text = serde_json::to_string(&small_config()).unwrap();
+    assert!(!text.contains("spatial_smooth"), "{text}");
     for (w, sd, field) in [
         (-1.0, 0.1, "spatial_smooth_weight"),
         (1.0, f64::NAN, "spatial_smooth_std"),
