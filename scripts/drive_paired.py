@@ -11,7 +11,9 @@ policy, session 34's runs of it on seeds 0-9); or g98@39: RED with the discount 
 runs at the defaults since session 37 (seeds 0-4); red@42: RED against the defaults since
 session 42 (seeds 0-9); ae@42, gail@42, gmmil@42: that method against its runs at the
 defaults since session 42 (seeds 0-4); red@45: RED against the defaults since session 45
-(seeds 0-9, and 10-14 from session 52's runs).""" 
+(seeds 0-9, and 10-14 from session 52's runs); red@59: RED against the defaults since
+session 59 (red@45 but for s37, whose runs are session 58's `lc60` runs on seeds 0-4 and
+10-14).""" 
 import json, os, sys, math
 D = {  # (demo road per seed 0-9, unseen per seed 0-9)
  "scripted": ([100.0,100.0,100.0,100.0,84.0,70.9,61.5,100.0,64.9,100.0],[54.4,90.8,96.3,92.5,70.9,35.1,57.2,75.4,37.8,94.8]),
@@ -101,6 +103,14 @@ BASE["red@45"] = {
  "s23": ([80.9,83.2,100.0,92.6,100.0,87.4,83.2,100.0,100.0,80.9,81.5,81.8,100.0,100.0,89.6],[72.2,96.4,97.8,69.5,91.3,74.5,76.6,85.0,79.1,83.6,76.9,52.8,85.6,99.1,67.3]),
  "s37": ([100.0,100.0,100.0,100.0,100.0,65.9,100.0,77.8,100.0,80.7,81.5,100.0,46.6,86.0,100.0],[53.0,93.4,86.8,96.5,46.6,87.6,100.0,55.0,74.4,26.9,90.0,99.7,41.2,90.8,99.1]),
 }
+# RED at the defaults since session 59 (lane shifts for a demonstration that keeps one lane):
+# the scripted, s11 and s23 demos train as at the session-45 defaults; s37 is session 58's
+# `lc60` runs (docs/results/drive/s58-lane-shift-runs.csv, seeds 0-4 and 10-14; none on 5-9).
+BASE["red@59"] = dict(BASE["red@45"])
+BASE["red@59"]["s37"] = (
+ [100.0,100.0,100.0,100.0,100.0] + [None] * 5 + [100.0,100.0,92.4,100.0,100.0],
+ [77.8,98.4,97.4,88.9,54.8] + [None] * 5 + [100.0,77.8,91.9,100.0,76.5],
+)
 root, name = sys.argv[1], sys.argv[2]
 method = sys.argv[4] if len(sys.argv) > 4 else "red"
 if method != "red":
@@ -127,6 +137,8 @@ for demo, (road, unseen) in D.items():
         print(f"| {name} | {demo} | {seeds[0]}-{seeds[-1]} | {f(r)} | {sum(rv)/len(rv):.1f} | {min(rv):.1f} | {f(u)} | {sum(uv)/len(uv):.1f} |")
     for i in done:
         k = seeds[i]
+        if road[k] is None:
+            continue  # no baseline run on this seed
         dr.append(r[i]); du.append(u[i]); dd.append(r[i] - road[k]); ddu.append(u[i] - unseen[k])
         n90 += r[i] >= 90; n90d += road[k] >= 90
 def ms(x):
