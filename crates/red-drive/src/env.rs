@@ -390,6 +390,42 @@ pub fn lane_shifted(
     out
 }
 
+/// The observations ([`OBS_DIM`] numbers each) of a recorded path with the
+/// car turned on the spot: for each angle `angles[i]` (radians, positive to
+/// the left) and each step `t` of `poses` but the last (the last pose has
+/// no action), the observation of `poses[t]` with its heading turned by
+/// the angle, kept only if the turned car touches nothing (walls included)
+/// at that step. Returns `(i, t, observation)` in order of `i`, then `t`.
+///
+/// These are the states a driver who holds the recorded line would meet
+/// after a small slip of the wheel; what to do there is the caller's
+/// choice (e.g. the recorded action plus a steer back).
+pub fn heading_turned(
+    world: &World,
+    poses: &[CarState],
+    angles: &[f64],
+) -> Vec<(usize, usize, Vec<f64>)> {
+    let n = poses.len().saturating_sub(1);
+    let mut out = Vec::new();
+    let mut ranges = [0.0; NUM_RAYS];
+    for (i, &angle) in angles.iter().enumerate() {
+        for (t, pose) in poses[..n].iter().enumerate() {
+            let turned = CarState {
+                heading: pose.heading + angle,
+                ..*pose
+            };
+            if world.collides(&turned) {
+                continue;
+            }
+            world.lidar(&turned, &mut ranges);
+            let mut obs = Vec::with_capacity(OBS_DIM);
+            world.observation(&turned, &ranges, &mut obs);
+            out.push((i, t, obs));
+        }
+    }
+    out
+}
+
 /// The lane (0-2, 0 the right-hand one) nearest the car whose observation
 /// on `road` is `obs` ([`World::observation`]: input `NUM_RAYS` is the
 /// lateral position over the road's half width).
@@ -884,6 +920,36 @@ mod tests {
         };
         // One pose has no action, so no step to move.
         assert!(lane_shifted(&world, &[start], true, 0, false).is_empty());
+    }
+
+    #[test]
+    fn turned_poses_read_the_turned_heading_and_skip_a_wall() {
+        let road = DriveConfig::default();
+        let world = World::new(&road).unwrap();
+        assert!(heading_turned(&world, &[], &[0.1]).is_empty());
+        let at = |y: f64| CarState {
+            x: 10.0,
+            y,
+            heading: 0.02,
+            speed: 25.0,
+        };
+        // The second step's car touches the top wall once turned by 0.5
+        // rad: its corner reaches past the road's half width.
+        let edge = road.half_width() - 0.5 * road.car_width - 0.05;
+        let poses = [at(0.0), at(edge), at(0.0)];
+        let out = heading_turned(&world, &poses, &[-0.04, 0.5]);
+        let keys: Vec<(usize, usize)> = out.iter().map(|(i, t, _)| (*i, *t)).collect();
+        assert_eq!(keys, [(0, 0), (0, 1), (1, 0)]);
+        let mut ranges = [0.0; NUM_RAYS];
+        let mut want = Vec::new();
+        let turned = CarState {
+            heading: 0.02 - 0.04,
+            ..poses[1]
+        };
+        world.lidar(&turned, &mut ranges);
+        world.observation(&turned, &ranges, &mut want);
+        assert_eq!(out[1].2, want);
+        assert!((want[NUM_RAYS + 1] - (-0.02 / road.heading_scale)).abs() < 1e-12);
     }
 
     #[test]

@@ -10,7 +10,8 @@
 //! reward, lateral offset (m) and speed (km/h) as `reward@y/kmh`. The
 //! reward is fitted on the recorded pairs only: a run whose demonstration
 //! got lane-moved pairs (`train.lane_shift_clear_steps`, a one-lane demo
-//! such as s37 at the defaults since session 59) fitted on more.
+//! such as s37 at the defaults since session 59) or turned pairs
+//! (`train.heading_turns`) fitted on more.
 use ndarray::Array2;
 use red_experiments::drive::{
     DriveTrainConfig, EVAL_SEED, drive_deterministic, load_demo, load_run_policy, run_reward,

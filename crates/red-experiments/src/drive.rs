@@ -248,6 +248,22 @@ pub struct DriveTrainConfig {
     /// means 0.
     #[serde(default)]
     pub lane_shift_min_lane_share: f64,
+    /// Also learn from the demonstration with the car turned off its
+    /// recorded heading and steering back (our addition, off by default;
+    /// the "recovery" views of end-to-end driving, Bojarski et al. 2016):
+    /// the demonstration is replayed on its own road and each recorded
+    /// state, its heading turned by each of `angles`, is added with the
+    /// recorded action whose steering is moved by `-gain * angle` (then
+    /// clipped to [-1, 1]), when the turned car touches nothing
+    /// ([`red_drive::env::heading_turned`]). A person's demonstration
+    /// shows where to drive but hardly how to come back after a slip; the
+    /// turned pairs put a steer back on the support. Every method's
+    /// reward, the warm start, the BC term and the policy's input scaling
+    /// see them (after the lane-moved pairs; with `mirror_demos` each pair
+    /// is followed by its mirror image). Written to `config.json` only
+    /// when set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub heading_turns: Option<HeadingTurns>,
     /// Start noise of the training episodes' lateral offset (our addition):
     /// each training episode starts `U(-this, this)` metres off the lane's
     /// centre instead of the road's `start_lateral_noise` (0.3 m), so the
@@ -648,6 +664,7 @@ impl Default for DriveTrainConfig {
             lane_shift_clear_steps: 60,
             lane_shift_undriven_only: false,
             lane_shift_min_lane_share: 0.95,
+            heading_turns: None,
             train_start_lateral_noise: None,
             train_start_heading_noise: None,
             train_obstacle_spacing_min: None,
@@ -668,6 +685,41 @@ impl Default for DriveTrainConfig {
             last_action_input: false,
             policy_obs_dim_floors: Vec::new(),
         }
+    }
+}
+
+/// The turned copies of the demonstration (`train.heading_turns`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeadingTurns {
+    /// The turns in radians (positive to the left), each nonzero and
+    /// below 0.5 in size; e.g. `[-0.06, -0.03, 0.03, 0.06]`.
+    pub angles: Vec<f64>,
+    /// Steering (in the action's units, 1 the full lock) per radian of
+    /// turn that the added pairs steer back: at 100 km/h the full lock
+    /// turns the car at about 0.29 rad/s, so 8 takes a turn back out with
+    /// a time constant of about 0.43 s.
+    pub gain: f64,
+}
+
+impl HeadingTurns {
+    fn check(&self) -> std::result::Result<(), String> {
+        if self.angles.is_empty() {
+            return Err("needs at least one angle, e.g. [-0.06, -0.03, 0.03, 0.06]".into());
+        }
+        if let Some(a) = self
+            .angles
+            .iter()
+            .find(|a| !(a.is_finite() && **a != 0.0 && a.abs() < 0.5))
+        {
+            return Err(format!(
+                "each angle must be nonzero and below 0.5 rad in size, got {a}"
+            ));
+        }
+        if !(self.gain.is_finite() && self.gain >= 0.0) {
+            return Err(format!("gain must be finite and >= 0, got {}", self.gain));
+        }
+        Ok(())
     }
 }
 
@@ -807,6 +859,11 @@ impl DriveTrainConfig {
                 "train.lane_shift_min_lane_share",
                 format!("must lie in [0, 1] (a share of the demonstration's steps), got {share}"),
             ));
+        }
+        if let Some(turns) = &self.heading_turns {
+            turns
+                .check()
+                .map_err(|e| invalid("train.heading_turns", e))?;
         }
         if self.lane_shift_undriven_only && self.lane_shift_clear_steps == 0 {
             return Err(invalid(
@@ -2013,6 +2070,15 @@ fn report(
 /// With lane-moved pairs, a trajectory that does not replay on the road
 /// its file names (the run's road for a file that names none).
 fn training_pairs(run: &DriveRunConfig, demos: &Demos) -> Result<(Array2<f64>, Array2<f64>)> {
+    training_pairs_counted(run, demos).map(|(s, a, _)| (s, a))
+}
+
+/// [`training_pairs`] and how many lane-moved pairs they hold (not
+/// counting mirror images).
+fn training_pairs_counted(
+    run: &DriveRunConfig,
+    demos: &Demos,
+) -> Result<(Array2<f64>, Array2<f64>, usize)> {
     let train = &run.train;
     let (mut s, mut a) = demos.pairs();
     if train.demo_action_smoothing > 0 {
@@ -2025,11 +2091,17 @@ fn training_pairs(run: &DriveRunConfig, demos: &Demos) -> Result<(Array2<f64>, A
         (s, a, moved) = with_lane_shifted(run, demos, s, a)?;
         sources.extend(moved);
     }
+    let moved = sources.len() - demos.num_pairs();
+    if let Some(turns) = &train.heading_turns {
+        let turned;
+        (s, a, turned) = with_heading_turned(run, demos, turns, s, a)?;
+        sources.extend(turned);
+    }
     if train.last_action_input {
         s = with_previous_actions(&demos.lengths(), s, a.view(), &sources);
     }
     if !train.mirror_demos {
-        return Ok((s, a));
+        return Ok((s, a, moved));
     }
     let (n, od, ad) = (s.nrows(), s.ncols(), a.ncols());
     let mut s2 = Array2::zeros((2 * n, od));
@@ -2043,7 +2115,7 @@ fn training_pairs(run: &DriveRunConfig, demos: &Demos) -> Result<(Array2<f64>, A
             red_drive::env::mirror_pair(o.as_slice_mut().unwrap(), u.as_slice_mut().unwrap());
         }
     }
-    Ok((s2, a2))
+    Ok((s2, a2, moved))
 }
 
 /// `(s, a)`, the pairs of `demos` stacked in order, followed, when the
@@ -2079,6 +2151,43 @@ fn with_lane_shifted(
         for (_, t, obs) in red_drive::env::lane_shifted(&world, &poses, finished, clear, only) {
             rows_s.extend(obs);
             rows_a.extend(a.row(start + t).iter().copied());
+            sources.push(start + t);
+        }
+        start += traj.actions.len();
+    }
+    let extra_s = Array2::from_shape_vec((rows_s.len() / s.ncols(), s.ncols()), rows_s)
+        .expect("observations of OBS_DIM numbers");
+    let extra_a = Array2::from_shape_vec((rows_a.len() / a.ncols(), a.ncols()), rows_a)
+        .expect("actions of the demonstration's width");
+    let cat = |x: Array2<f64>, y: Array2<f64>| {
+        ndarray::concatenate(ndarray::Axis(0), &[x.view(), y.view()]).expect("same width")
+    };
+    Ok((cat(s, extra_s), cat(a, extra_a), sources))
+}
+
+/// `(s, a)` followed by the recorded pairs of `demos` (the first
+/// `demos.num_pairs()` rows) with the car turned by each of `turns.angles`
+/// on the road its file names ([`red_drive::env::heading_turned`]), each
+/// with the recorded action steering back by `turns.gain` per radian; and
+/// the recorded step (row of `s`) each turned pair comes from.
+fn with_heading_turned(
+    run: &DriveRunConfig,
+    demos: &Demos,
+    turns: &HeadingTurns,
+    s: Array2<f64>,
+    a: Array2<f64>,
+) -> Result<(Array2<f64>, Array2<f64>, Vec<usize>)> {
+    let road = demo_road(run, demos);
+    let world = red_drive::World::new(&road)?;
+    let paths = replayed_on(&road, run, demos, "train.heading_turns", "paths to turn")?;
+    let (mut rows_s, mut rows_a, mut sources) = (Vec::new(), Vec::new(), Vec::new());
+    let mut start = 0;
+    for (traj, (poses, _)) in demos.trajectories.iter().zip(paths) {
+        for (i, t, obs) in red_drive::env::heading_turned(&world, &poses, &turns.angles) {
+            rows_s.extend(obs);
+            let mut act: Vec<f64> = a.row(start + t).to_vec();
+            act[0] = (act[0] - turns.gain * turns.angles[i]).clamp(-1.0, 1.0);
+            rows_a.extend(act);
             sources.push(start + t);
         }
         start += traj.actions.len();
@@ -2148,12 +2257,11 @@ fn main_lane_share(road: &DriveConfig, demos: &Demos) -> (usize, f64) {
     )
 }
 
-/// What the lane shifts did to a new run's pairs (`pairs`, as
-/// [`training_pairs`] made them), when they added any.
-fn lane_shift_note(run: &DriveRunConfig, demos: &Demos, pairs: usize) -> Option<String> {
+/// What the lane shifts did to a new run's pairs, when they added any
+/// (`moved` pairs, not counting mirror images).
+fn lane_shift_note(run: &DriveRunConfig, demos: &Demos, moved: usize) -> Option<String> {
     let train = &run.train;
     let copies = if train.mirror_demos { 2 } else { 1 };
-    let moved = (pairs / copies).saturating_sub(demos.num_pairs());
     if train.lane_shift_clear_steps == 0 || moved == 0 {
         return None;
     }
@@ -2700,6 +2808,12 @@ fn replayed_on(
     setting: &str,
     needs: &str,
 ) -> Result<Vec<(Vec<CarState>, PathEnd)>> {
+    // The other settings that replay are numbers that 0 turns off.
+    let off = if setting == "train.heading_turns" {
+        format!("leave {setting} out")
+    } else {
+        format!("set {setting} to 0")
+    };
     let (whose, fix) = if *road == run.drive {
         ("the run's road", "train on the demonstration's own road")
     } else {
@@ -2714,7 +2828,7 @@ fn replayed_on(
                 path: run.demo.clone().into(),
                 reason: format!(
                     "trajectory {i} does not replay on {whose}, so {setting} has no \
-                     {needs} ({e}); {fix} or set {setting} to 0"
+                     {needs} ({e}); {fix} or {off}"
                 ),
             })
         })
@@ -2867,8 +2981,8 @@ pub fn run_new(
     for n in run_dir.notes() {
         progress.note(n);
     }
-    let (es, ea) = training_pairs(&config, demos)?;
-    if let Some(n) = lane_shift_note(&config, demos, es.nrows()) {
+    let (es, ea, moved) = training_pairs_counted(&config, demos)?;
+    if let Some(n) = lane_shift_note(&config, demos, moved) {
         progress.note(&n);
     }
     let mut rng = Seeder::new(config.seed).rng(Stream::Init);
@@ -3953,6 +4067,74 @@ mod tests {
     }
 
     #[test]
+    fn turned_pairs_follow_the_recorded_ones_and_steer_back() {
+        let road = DriveConfig::default();
+        let demos = red_drive::expert_demos(&road, 2, 0).unwrap();
+        let (s, a) = demos.pairs();
+        let n = s.nrows();
+        let mut run = DriveRunConfig::new("demo.json", road.clone());
+        run.train.lane_shift_clear_steps = 0;
+        let turns = HeadingTurns {
+            angles: vec![-0.05, 0.05],
+            gain: 8.0,
+        };
+        run.train.heading_turns = Some(turns.clone());
+        let (s2, a2, moved) = training_pairs_counted(&run, &demos).unwrap();
+        assert_eq!(moved, 0, "turned pairs are not lane-moved ones");
+        assert_eq!(s2.slice(ndarray::s![..n, ..]), s);
+        assert_eq!(a2.slice(ndarray::s![..n, ..]), a);
+        // Then, trajectory by trajectory, red-drive's turned observations
+        // with the recorded action steering back.
+        let world = red_drive::World::new(&road).unwrap();
+        let (mut i, mut start) = (n, 0);
+        for (traj, (poses, _)) in demos
+            .trajectories
+            .iter()
+            .zip(replayed(&run, &demos, "test", "paths").unwrap())
+        {
+            for (k, t, obs) in red_drive::env::heading_turned(&world, &poses, &turns.angles) {
+                assert_eq!(s2.row(i).to_vec(), obs, "row {i}");
+                let want = (a[[start + t, 0]] - 8.0 * turns.angles[k]).clamp(-1.0, 1.0);
+                assert_eq!(a2[[i, 0]], want, "row {i}");
+                assert_eq!(a2[[i, 1]], a[[start + t, 1]], "row {i}");
+                i += 1;
+            }
+            start += traj.actions.len();
+        }
+        assert_eq!(i, s2.nrows());
+        // Nearly every step of a clean drive can be turned by 0.05 rad.
+        assert!(i - n > 2 * n * 9 / 10, "{} turned of {}", i - n, 2 * n);
+        // Off by default and left out of config.json; written when set.
+        let text = serde_json::to_string(&DriveTrainConfig::default()).unwrap();
+        assert!(!text.contains("heading_turns"), "{text}");
+        let text = serde_json::to_string(&run.train).unwrap();
+        let back: DriveTrainConfig = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.heading_turns, Some(turns));
+        // Bad settings are refused by name.
+        for (angles, gain) in [
+            (vec![], 8.0),
+            (vec![0.0], 8.0),
+            (vec![0.6], 8.0),
+            (vec![0.1], -1.0),
+        ] {
+            run.train.heading_turns = Some(HeadingTurns { angles, gain });
+            let e = run.train.validate().unwrap_err().to_string();
+            assert!(e.contains("train.heading_turns"), "{e}");
+        }
+        // A file that does not replay on its road is refused with the way out.
+        run.train.heading_turns = Some(HeadingTurns {
+            angles: vec![0.05],
+            gain: 8.0,
+        });
+        let mut other = run.clone();
+        other.drive.track_seed += 1;
+        let mut roadless = demos.clone();
+        roadless.scenario = None;
+        let e = training_pairs(&other, &roadless).unwrap_err().to_string();
+        assert!(e.contains("leave train.heading_turns out"), "{e}");
+    }
+
+    #[test]
     fn a_policy_with_the_last_action_drives_with_it_and_reads_it_back() {
         use red_rl::policy::GaussianPolicyConfig;
         let road = DriveConfig::default();
@@ -4081,7 +4263,8 @@ mod tests {
         // At or below the share the pairs are moved; above it they are not.
         run.train.lane_shift_min_lane_share = share;
         assert_eq!(training_pairs(&run, &demos).unwrap().0.nrows(), moved);
-        let note = lane_shift_note(&run, &demos, moved).unwrap();
+        assert_eq!(training_pairs_counted(&run, &demos).unwrap().2, moved - n);
+        let note = lane_shift_note(&run, &demos, moved - n).unwrap();
         assert!(
             note.contains(&format!("keeps lane {lane} "))
                 && note.contains(&format!("{} pairs added (train", moved - n)),
@@ -4089,7 +4272,8 @@ mod tests {
         );
         // With mirror images the note counts the moved pairs once.
         run.train.mirror_demos = true;
-        let note = lane_shift_note(&run, &demos, 2 * moved).unwrap();
+        assert_eq!(training_pairs_counted(&run, &demos).unwrap().2, moved - n);
+        let note = lane_shift_note(&run, &demos, moved - n).unwrap();
         assert!(
             note.contains(&format!("{} pairs added (and their mirror", moved - n)),
             "{note}"
@@ -4097,7 +4281,8 @@ mod tests {
         run.train.mirror_demos = false;
         run.train.lane_shift_min_lane_share = (share + 1.0) / 2.0;
         assert_eq!(training_pairs(&run, &demos).unwrap().0.nrows(), n);
-        assert_eq!(lane_shift_note(&run, &demos, n), None);
+        assert_eq!(training_pairs_counted(&run, &demos).unwrap().2, 0);
+        assert_eq!(lane_shift_note(&run, &demos, 0), None);
         // The gate needs no replay: a demonstration below it trains on a
         // road it does not fit (--other-road) as before.
         let mut other = run.clone();
