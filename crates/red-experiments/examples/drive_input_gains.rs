@@ -2,8 +2,9 @@
 //! each of its 24 observation inputs (a policy that also reads the last
 //! action, `train.last_action_input`, has two more, left out here). For
 //! each input: the demonstration's standard
-//! deviation (the policy normaliser's, before any floor; over the demo's
-//! states and their mirror images when the run mirrored them), the divisor the
+//! deviation (the policy normaliser's, before any floor; over every pair
+//! the run learnt from: the demo's states and any lane-moved, turned or
+//! mirrored ones), the divisor the
 //! normaliser uses (after the floors), and the median over states of
 //! |d steer / d input| (the mean action's steering, per unit of the raw
 //! observation, by a central difference of 1e-3), over the states the

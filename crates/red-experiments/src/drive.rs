@@ -253,11 +253,16 @@ pub struct DriveTrainConfig {
     /// the "recovery" views of end-to-end driving, Bojarski et al. 2016):
     /// the demonstration is replayed on its own road and each recorded
     /// state, its heading turned by each of `angles`, is added with the
-    /// recorded action whose steering is moved by `-gain * angle` (then
-    /// clipped to [-1, 1]), when the turned car touches nothing
+    /// action of that step (smoothed if `demo_action_smoothing` is set)
+    /// whose steering is moved by `-gain * angle` (then clipped to [-1,
+    /// 1]), when the turned car touches nothing
     /// ([`red_drive::env::heading_turned`]). A person's demonstration
     /// shows where to drive but hardly how to come back after a slip; the
-    /// turned pairs put a steer back on the support. Every method's
+    /// turned pairs put a steer back on the support (with
+    /// `reward_on_states` the reward sees only the turned states; the BC
+    /// term and the warm start still see the steer back). The heading
+    /// input saturates at `heading_scale` (0.5 rad): past it a turned
+    /// state reads as if turned less, with the full steer back. Every method's
     /// reward, the warm start, the BC term and the policy's input scaling
     /// see them (after the lane-moved pairs; with `mirror_demos` each pair
     /// is followed by its mirror image). Written to `config.json` only
@@ -2059,16 +2064,17 @@ fn report(
 /// The state-action pairs the methods learn from: the demonstration's
 /// (`run.demo`, read into `demos`), then its lane-moved pairs when
 /// `train.lane_shift_clear_steps` is set and the demonstration keeps one
-/// lane for `train.lane_shift_min_lane_share` of its steps, each followed
-/// by its mirror image when `train.mirror_demos` is on. With
+/// lane for `train.lane_shift_min_lane_share` of its steps, then its
+/// turned pairs when `train.heading_turns` is set, each followed by its
+/// mirror image when `train.mirror_demos` is on. With
 /// `train.last_action_input` every observation is followed by the
 /// demonstrator's action of the step before the one the pair comes from
 /// (zeros at a trajectory's first step), as [`red_core::LastAction`]
 /// extends the learner's.
 ///
 /// # Errors
-/// With lane-moved pairs, a trajectory that does not replay on the road
-/// its file names (the run's road for a file that names none).
+/// With lane-moved or turned pairs, a trajectory that does not replay on
+/// the road its file names (the run's road for a file that names none).
 fn training_pairs(run: &DriveRunConfig, demos: &Demos) -> Result<(Array2<f64>, Array2<f64>)> {
     training_pairs_counted(run, demos).map(|(s, a, _)| (s, a))
 }
@@ -2165,11 +2171,14 @@ fn with_lane_shifted(
     Ok((cat(s, extra_s), cat(a, extra_a), sources))
 }
 
-/// `(s, a)` followed by the recorded pairs of `demos` (the first
-/// `demos.num_pairs()` rows) with the car turned by each of `turns.angles`
-/// on the road its file names ([`red_drive::env::heading_turned`]), each
-/// with the recorded action steering back by `turns.gain` per radian; and
-/// the recorded step (row of `s`) each turned pair comes from.
+/// `(s, a)` followed by turned pairs: each trajectory of `demos` is
+/// replayed on the road its file names and the observation of each of its
+/// car states turned by each of `turns.angles` is rebuilt there
+/// ([`red_drive::env::heading_turned`]), with the action of that step
+/// (the row of `a` among the first `demos.num_pairs()`, smoothed if
+/// `demo_action_smoothing` smoothed it) steering back by `turns.gain` per
+/// radian, clipped to [-1, 1]; and the recorded step (row of `s`) each
+/// turned pair comes from.
 fn with_heading_turned(
     run: &DriveRunConfig,
     demos: &Demos,
@@ -2800,6 +2809,17 @@ fn replayed(
     replayed_on(&run.drive, run, demos, setting, needs)
 }
 
+/// How to turn off `setting`, a training setting that asks for the
+/// demonstration's replay: `train.heading_turns` is left out, the others
+/// are numbers that 0 turns off.
+fn turn_off(setting: &str) -> String {
+    if setting == "train.heading_turns" {
+        format!("leave {setting} out")
+    } else {
+        format!("set {setting} to 0")
+    }
+}
+
 /// As [`replayed`], on `road`.
 fn replayed_on(
     road: &DriveConfig,
@@ -2808,12 +2828,6 @@ fn replayed_on(
     setting: &str,
     needs: &str,
 ) -> Result<Vec<(Vec<CarState>, PathEnd)>> {
-    // The other settings that replay are numbers that 0 turns off.
-    let off = if setting == "train.heading_turns" {
-        format!("leave {setting} out")
-    } else {
-        format!("set {setting} to 0")
-    };
     let (whose, fix) = if *road == run.drive {
         ("the run's road", "train on the demonstration's own road")
     } else {
@@ -2828,7 +2842,8 @@ fn replayed_on(
                 path: run.demo.clone().into(),
                 reason: format!(
                     "trajectory {i} does not replay on {whose}, so {setting} has no \
-                     {needs} ({e}); {fix} or {off}"
+                     {needs} ({e}); {fix} or {}",
+                    turn_off(setting)
                 ),
             })
         })
@@ -4132,6 +4147,69 @@ mod tests {
         roadless.scenario = None;
         let e = training_pairs(&other, &roadless).unwrap_err().to_string();
         assert!(e.contains("leave train.heading_turns out"), "{e}");
+        // A file that names its road is turned on that road, whatever the
+        // run's.
+        assert_eq!(
+            training_pairs(&other, &demos).unwrap(),
+            training_pairs(&run, &demos).unwrap()
+        );
+    }
+
+    #[test]
+    fn turned_pairs_come_after_the_moved_ones_with_their_sources() {
+        let road = DriveConfig::default();
+        let demos = red_drive::expert_demos(&road, 2, 0).unwrap();
+        let lengths = demos.lengths();
+        let (_, a) = demos.pairs();
+        let n = a.nrows();
+        let mut run = DriveRunConfig::new("demo.json", road.clone());
+        run.train.lane_shift_min_lane_share = 0.0;
+        let (moved_s, _, moved) = training_pairs_counted(&run, &demos).unwrap();
+        assert!(moved > 0);
+        assert_eq!(moved_s.nrows(), n + moved);
+        // A gain large enough to hit the full lock on some pairs.
+        let angles = vec![-0.2, 0.1];
+        run.train.heading_turns = Some(HeadingTurns {
+            angles: angles.clone(),
+            gain: 9.0,
+        });
+        run.train.last_action_input = true;
+        run.train.mirror_demos = true;
+        let (s2, a2, moved2) = training_pairs_counted(&run, &demos).unwrap();
+        assert_eq!(moved2, moved, "the count is of lane-moved pairs only");
+        let world = red_drive::World::new(&road).unwrap();
+        let mut turned = Vec::new();
+        let mut start = 0;
+        for (traj, (poses, _)) in demos
+            .trajectories
+            .iter()
+            .zip(replayed(&run, &demos, "test", "paths").unwrap())
+        {
+            for (k, t, obs) in red_drive::env::heading_turned(&world, &poses, &angles) {
+                turned.push((k, start + t, obs));
+            }
+            start += traj.actions.len();
+        }
+        let rows = n + moved + turned.len();
+        assert_eq!(s2.nrows(), 2 * rows, "each pair and its mirror image");
+        let firsts = [0, lengths[0]];
+        let mut clamped = 0;
+        for (j, (k, src, obs)) in turned.iter().enumerate() {
+            // Even rows are the pairs, odd ones their mirror images.
+            let row = 2 * (n + moved + j);
+            assert_eq!(s2.slice(ndarray::s![row, ..OBS_DIM]).to_vec(), *obs);
+            let prev: Vec<f64> = if firsts.contains(src) {
+                vec![0.0; ACT_DIM]
+            } else {
+                a.row(src - 1).iter().map(|v| v.clamp(-1.0, 1.0)).collect()
+            };
+            assert_eq!(s2.slice(ndarray::s![row, OBS_DIM..]).to_vec(), prev);
+            let raw = a[[*src, 0]] - 9.0 * angles[*k];
+            clamped += usize::from(raw.abs() > 1.0);
+            assert_eq!(a2[[row, 0]], raw.clamp(-1.0, 1.0));
+            assert_eq!(a2[[row + 1, 0]], -raw.clamp(-1.0, 1.0));
+        }
+        assert!(clamped > 0, "some steer backs reach the full lock");
     }
 
     #[test]
