@@ -391,35 +391,39 @@ pub fn lane_shifted(
 }
 
 /// The observations ([`OBS_DIM`] numbers each) of a recorded path with the
-/// car turned on the spot: for each angle `angles[i]` (radians, positive to
-/// the left) and each step `t` of `poses` but the last (the last pose has
-/// no action), the observation of `poses[t]` with its heading turned by
-/// the angle, kept only if the turned car touches nothing (walls included)
-/// at that step. Returns `(i, t, observation)` in order of `i`, then `t`.
+/// car nudged off it: for each nudge `nudges[i]` = `(dy, dheading)` (metres
+/// to the left, radians to the left) and each step `t` of `poses` but the
+/// last (the last pose has no action), the observation of `poses[t]` moved
+/// sideways by `dy` and turned by `dheading`, kept only if the nudged car
+/// touches nothing (walls included) at that step. Returns `(i, t,
+/// observation)` in order of `i`, then `t`.
 ///
 /// These are the states a driver who holds the recorded line would meet
-/// after a small slip of the wheel; what to do there is the caller's
-/// choice (e.g. the recorded action plus a steer back).
-pub fn heading_turned(
+/// after a small slip; what to do there is the caller's choice (e.g. the
+/// recorded action plus a steer back).
+pub fn nudged(
     world: &World,
     poses: &[CarState],
-    angles: &[f64],
+    nudges: &[(f64, f64)],
 ) -> Vec<(usize, usize, Vec<f64>)> {
     let n = poses.len().saturating_sub(1);
     let mut out = Vec::new();
     let mut ranges = [0.0; NUM_RAYS];
-    for (i, &angle) in angles.iter().enumerate() {
+    for (i, &(dy, dheading)) in nudges.iter().enumerate() {
         for (t, pose) in poses[..n].iter().enumerate() {
-            let turned = CarState {
-                heading: pose.heading + angle,
+            let car = CarState {
+                y: pose.y + dy,
+                heading: pose.heading + dheading,
                 ..*pose
             };
-            if world.collides(&turned) {
+            // Past a wall's far side the car touches nothing: off the road
+            // counts as a hit too.
+            if car.y.abs() >= world.config().half_width() || world.collides(&car) {
                 continue;
             }
-            world.lidar(&turned, &mut ranges);
+            world.lidar(&car, &mut ranges);
             let mut obs = Vec::with_capacity(OBS_DIM);
-            world.observation(&turned, &ranges, &mut obs);
+            world.observation(&car, &ranges, &mut obs);
             out.push((i, t, obs));
         }
     }
@@ -923,10 +927,10 @@ mod tests {
     }
 
     #[test]
-    fn turned_poses_read_the_turned_heading_and_skip_a_wall() {
+    fn nudged_poses_read_the_nudge_and_skip_a_wall() {
         let road = DriveConfig::default();
         let world = World::new(&road).unwrap();
-        assert!(heading_turned(&world, &[], &[0.1]).is_empty());
+        assert!(nudged(&world, &[], &[(0.0, 0.1)]).is_empty());
         let at = |y: f64| CarState {
             x: 10.0,
             y,
@@ -937,9 +941,10 @@ mod tests {
         // rad: its corner reaches past the road's half width.
         let edge = road.half_width() - 0.5 * road.car_width - 0.05;
         let poses = [at(0.0), at(edge), at(0.0)];
-        let out = heading_turned(&world, &poses, &[-0.04, 0.5]);
+        let out = nudged(&world, &poses, &[(0.0, -0.04), (0.0, 0.5), (0.3, 0.0)]);
         let keys: Vec<(usize, usize)> = out.iter().map(|(i, t, _)| (*i, *t)).collect();
-        assert_eq!(keys, [(0, 0), (0, 1), (1, 0)]);
+        // Moved 0.3 m to the left the second car is in the wall too.
+        assert_eq!(keys, [(0, 0), (0, 1), (1, 0), (2, 0)]);
         let mut ranges = [0.0; NUM_RAYS];
         let mut want = Vec::new();
         let turned = CarState {
@@ -950,6 +955,10 @@ mod tests {
         world.observation(&turned, &ranges, &mut want);
         assert_eq!(out[1].2, want);
         assert!((want[NUM_RAYS + 1] - (-0.02 / road.heading_scale)).abs() < 1e-12);
+        let moved = CarState { y: 0.3, ..poses[0] };
+        world.lidar(&moved, &mut ranges);
+        world.observation(&moved, &ranges, &mut want);
+        assert_eq!(out[3].2, want);
     }
 
     #[test]
