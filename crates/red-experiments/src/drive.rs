@@ -738,44 +738,44 @@ pub struct LateralOffsets {
 
 impl LateralOffsets {
     fn check(&self) -> std::result::Result<(), String> {
-        if self.offsets.is_empty() {
-            return Err("needs at least one offset, e.g. [-0.8, -0.4, 0.4, 0.8]".into());
-        }
-        if let Some(d) = self
-            .offsets
-            .iter()
-            .find(|d| !(d.is_finite() && **d != 0.0 && d.abs() < 1.75))
-        {
-            return Err(format!(
-                "each offset must be nonzero and below 1.75 m in size, got {d}"
-            ));
-        }
-        if !(self.gain.is_finite() && self.gain >= 0.0) {
-            return Err(format!("gain must be finite and >= 0, got {}", self.gain));
-        }
-        Ok(())
+        let example = "[-0.8, -0.4, 0.4, 0.8]";
+        check_steer_back("offset", "m", 1.75, example, &self.offsets, self.gain)
     }
 }
 
 impl HeadingTurns {
     fn check(&self) -> std::result::Result<(), String> {
-        if self.angles.is_empty() {
-            return Err("needs at least one angle, e.g. [-0.06, -0.03, 0.03, 0.06]".into());
-        }
-        if let Some(a) = self
-            .angles
-            .iter()
-            .find(|a| !(a.is_finite() && **a != 0.0 && a.abs() < 0.5))
-        {
-            return Err(format!(
-                "each angle must be nonzero and below 0.5 rad in size, got {a}"
-            ));
-        }
-        if !(self.gain.is_finite() && self.gain >= 0.0) {
-            return Err(format!("gain must be finite and >= 0, got {}", self.gain));
-        }
-        Ok(())
+        let example = "[-0.06, -0.03, 0.03, 0.06]";
+        check_steer_back("angle", "rad", 0.5, example, &self.angles, self.gain)
     }
+}
+
+/// Checks the nudges (`what`, in `unit`) and the gain of a steer-back
+/// setting: at least one nudge (`example` shows some), each nonzero and
+/// below `limit` in size, and a finite gain >= 0.
+fn check_steer_back(
+    what: &str,
+    unit: &str,
+    limit: f64,
+    example: &str,
+    nudges: &[f64],
+    gain: f64,
+) -> std::result::Result<(), String> {
+    if nudges.is_empty() {
+        return Err(format!("needs at least one {what}, e.g. {example}"));
+    }
+    if let Some(d) = nudges
+        .iter()
+        .find(|d| !(d.is_finite() && **d != 0.0 && d.abs() < limit))
+    {
+        return Err(format!(
+            "each {what} must be nonzero and below {limit} {unit} in size, got {d}"
+        ));
+    }
+    if !(gain.is_finite() && gain >= 0.0) {
+        return Err(format!("gain must be finite and >= 0, got {gain}"));
+    }
+    Ok(())
 }
 
 /// Which learner improves the policy on a method's reward.
@@ -2227,14 +2227,8 @@ fn with_lane_shifted(
         }
         start += traj.actions.len();
     }
-    let extra_s = Array2::from_shape_vec((rows_s.len() / s.ncols(), s.ncols()), rows_s)
-        .expect("observations of OBS_DIM numbers");
-    let extra_a = Array2::from_shape_vec((rows_a.len() / a.ncols(), a.ncols()), rows_a)
-        .expect("actions of the demonstration's width");
-    let cat = |x: Array2<f64>, y: Array2<f64>| {
-        ndarray::concatenate(ndarray::Axis(0), &[x.view(), y.view()]).expect("same width")
-    };
-    Ok((cat(s, extra_s), cat(a, extra_a), sources))
+    let (s, a) = with_rows(s, a, rows_s, rows_a);
+    Ok((s, a, sources))
 }
 
 /// `(s, a)` followed by nudged pairs: each trajectory of `demos` is
@@ -2270,14 +2264,26 @@ fn with_nudged(
         }
         start += traj.actions.len();
     }
+    let (s, a) = with_rows(s, a, rows_s, rows_a);
+    Ok((s, a, sources))
+}
+
+/// `(s, a)` with the rows `rows_s` and `rows_a` (row-major, as wide as
+/// `s` and `a`) appended.
+fn with_rows(
+    s: Array2<f64>,
+    a: Array2<f64>,
+    rows_s: Vec<f64>,
+    rows_a: Vec<f64>,
+) -> (Array2<f64>, Array2<f64>) {
     let extra_s = Array2::from_shape_vec((rows_s.len() / s.ncols(), s.ncols()), rows_s)
-        .expect("observations of OBS_DIM numbers");
+        .expect("observations as wide as the recorded ones");
     let extra_a = Array2::from_shape_vec((rows_a.len() / a.ncols(), a.ncols()), rows_a)
         .expect("actions of the demonstration's width");
     let cat = |x: Array2<f64>, y: Array2<f64>| {
         ndarray::concatenate(ndarray::Axis(0), &[x.view(), y.view()]).expect("same width")
     };
-    Ok((cat(s, extra_s), cat(a, extra_a), sources))
+    (cat(s, extra_s), cat(a, extra_a))
 }
 
 /// `s` with the previous action appended to each row: for row `i`, which
