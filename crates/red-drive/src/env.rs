@@ -395,7 +395,7 @@ pub fn lane_shifted(
 /// to the left, radians to the left) and each step `t` of `poses` but the
 /// last (the last pose has no action), the observation of `poses[t]` moved
 /// sideways by `dy` and turned by `dheading`, kept only if the nudged car
-/// touches nothing (walls included) at that step. Returns `(i, t,
+/// is on the road and touches nothing (walls included) at that step. Returns `(i, t,
 /// observation)` in order of `i`, then `t`.
 ///
 /// These are the states a driver who holds the recorded line would meet
@@ -941,7 +941,15 @@ mod tests {
         // rad: its corner reaches past the road's half width.
         let edge = road.half_width() - 0.5 * road.car_width - 0.05;
         let poses = [at(0.0), at(edge), at(0.0)];
-        let out = nudged(&world, &poses, &[(0.0, -0.04), (0.0, 0.5), (0.3, 0.0)]);
+        // Moved 3 m to the left the second car is past the wall, where it
+        // touches nothing: off the road, so left out too.
+        let past = road.half_width() + 2.0 * road.car_length;
+        assert!(!world.collides(&CarState {
+            y: past,
+            ..poses[1]
+        }));
+        let nudges = [(0.0, -0.04), (0.0, 0.5), (0.3, 0.0), (past - edge, 0.0)];
+        let out = nudged(&world, &poses, &nudges);
         let keys: Vec<(usize, usize)> = out.iter().map(|(i, t, _)| (*i, *t)).collect();
         // Moved 0.3 m to the left the second car is in the wall too.
         assert_eq!(keys, [(0, 0), (0, 1), (1, 0), (2, 0)]);

@@ -2165,9 +2165,9 @@ fn training_pairs_counted(
     if let Some(offsets) = &train.lateral_offsets {
         let nudges: Vec<(f64, f64)> = offsets.offsets.iter().map(|&d| (d, 0.0)).collect();
         let back: Vec<f64> = offsets.offsets.iter().map(|&d| offsets.gain * d).collect();
-        let moved;
-        (s, a, moved) = with_nudged(run, demos, &nudges, &back, "train.lateral_offsets", s, a)?;
-        sources.extend(moved);
+        let sideways;
+        (s, a, sideways) = with_nudged(run, demos, &nudges, &back, "train.lateral_offsets", s, a)?;
+        sources.extend(sideways);
     }
     if train.last_action_input {
         s = with_previous_actions(&demos.lengths(), s, a.view(), &sources);
@@ -4272,8 +4272,9 @@ mod tests {
         for (offsets, gain) in [
             (vec![], 0.5),
             (vec![0.0], 0.5),
-            (vec![1.8], 0.5),
+            (vec![1.75], 0.5),
             (vec![0.4], f64::NAN),
+            (vec![0.4], -0.5),
         ] {
             run.train.lateral_offsets = Some(LateralOffsets { offsets, gain });
             let e = run.train.validate().unwrap_err().to_string();
@@ -4337,6 +4338,14 @@ mod tests {
             assert_eq!(a2[[row + 1, 0]], -raw.clamp(-1.0, 1.0));
         }
         assert!(clamped > 0, "some steer backs reach the full lock");
+        // Sideways-moved pairs are not counted as lane-moved ones either.
+        run.train.lateral_offsets = Some(LateralOffsets {
+            offsets: vec![0.4],
+            gain: 0.5,
+        });
+        let (s3, _, moved3) = training_pairs_counted(&run, &demos).unwrap();
+        assert!(s3.nrows() > s2.nrows());
+        assert_eq!(moved3, moved);
     }
 
     #[test]
