@@ -147,14 +147,16 @@ pub fn behavior_clone<R: Rng + ?Sized>(
             for (r, &i) in chunk.iter().enumerate() {
                 x.row_mut(r).assign(&obs.row(i));
             }
-            let out = policy.net().forward_tape(x.view(), &mut tape);
+            // The distribution's path, so the network sees its wrapped
+            // inputs too; its means are the outputs before the log-stds.
+            let mean = policy.distribution_tape(x.view(), &mut tape)?.mean;
             let mut g = Array2::<f32>::zeros((m, 2 * k));
             let mut loss = 0.0f64;
             let mut first_bad = None;
             let scale = 2.0 / (m * k) as f64;
             for (r, &i) in chunk.iter().enumerate() {
                 for j in 0..k {
-                    let d = out[[r, j]] as f64 - actions[[i, j]];
+                    let d = mean[[r, j]] - actions[[i, j]];
                     if !(d * d).is_finite() && first_bad.is_none() {
                         first_bad = Some(i);
                     }

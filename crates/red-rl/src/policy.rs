@@ -64,6 +64,35 @@ pub struct GaussianPolicyConfig {
     /// still describe the Gaussian before the squash; SVG(1)-ER and TRPO
     /// refuse a squashed policy. Default false.
     pub squash: bool,
+    /// Extra inputs that read an observation's place within a period
+    /// (our addition, empty by default): for each, the network also sees
+    /// `2 (u - round(u))` with `u = x[dim] / period` of the raw
+    /// observation, in `[-1, 1]`, 0 at the multiples of `period` and +-1
+    /// halfway between. On the driving road with `dim` the lateral
+    /// position and `period` one lane, it is the offset from the nearest
+    /// lane's centre, and it jumps at each lane line. The learners see the
+    /// input as constant: its slope is not chained to the observation in
+    /// the input gradients of [`GaussianPolicy::backward`].
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub wrapped_inputs: Vec<WrappedInput>,
+}
+
+/// One of [`GaussianPolicyConfig::wrapped_inputs`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WrappedInput {
+    /// The observation's dimension read.
+    pub dim: usize,
+    /// Its period, in the observation's raw units (> 0).
+    pub period: f64,
+}
+
+impl WrappedInput {
+    /// The input for a raw value `x`: `2 (u - round(u))`, `u = x / period`.
+    pub fn value(&self, x: f64) -> f64 {
+        let u = x / self.period;
+        2.0 * (u - u.round())
+    }
 }
 
 impl Default for GaussianPolicyConfig {
@@ -76,6 +105,7 @@ impl Default for GaussianPolicyConfig {
             log_std_max: 2.0,
             output_scale: 0.01,
             squash: false,
+            wrapped_inputs: Vec::new(),
         }
     }
 }
@@ -121,6 +151,14 @@ impl GaussianPolicyConfig {
                 "output_scale",
                 format!("must be finite and > 0, got {}", self.output_scale),
             );
+        }
+        for (i, w) in self.wrapped_inputs.iter().enumerate() {
+            if !(w.period.is_finite() && w.period > 0.0) {
+                return bad(
+                    &format!("wrapped_inputs[{i}].period"),
+                    format!("must be finite and > 0, got {}", w.period),
+                );
+            }
         }
         Ok(())
     }
@@ -322,8 +360,22 @@ impl GaussianPolicy {
                 got: format!("{}", n.dim()),
             });
         }
+        if let Some((i, w)) = config
+            .wrapped_inputs
+            .iter()
+            .enumerate()
+            .find(|(_, w)| w.dim >= obs_dim)
+        {
+            return Err(Error::InvalidConfig {
+                field: format!("wrapped_inputs[{i}].dim"),
+                reason: format!(
+                    "dimension {} is out of range: observations have {obs_dim}",
+                    w.dim
+                ),
+            });
+        }
         let net_cfg = MlpConfig {
-            input: obs_dim,
+            input: obs_dim + config.wrapped_inputs.len(),
             hidden: config.hidden.clone(),
             output: 2 * act_dim,
             activation: config.activation,
@@ -335,7 +387,7 @@ impl GaussianPolicy {
         // layout the last layer's weights then biases come last.
         let mut p = net.params_flat();
         let n = p.len();
-        let last_in = *config.hidden.last().unwrap_or(&obs_dim);
+        let last_in = *config.hidden.last().unwrap_or(&net_cfg.input);
         let w0 = n - last_in * 2 * act_dim - 2 * act_dim;
         for w in &mut p[w0..n - 2 * act_dim] {
             *w *= config.output_scale;
@@ -374,7 +426,7 @@ impl GaussianPolicy {
         self.act_dim
     }
 
-    /// The network (`obs_dim -> 2 * act_dim`).
+    /// The network (`obs_dim` plus the wrapped inputs `-> 2 * act_dim`).
     pub fn net(&self) -> &Mlp {
         &self.net
     }
@@ -450,7 +502,10 @@ impl GaussianPolicy {
         ws: &mut Workspace,
     ) -> Result<GaussianBatch> {
         self.check_obs_cols(obs.ncols())?;
-        let out = self.net.forward(obs, ws);
+        let out = match self.with_wrapped(obs) {
+            Some(x) => self.net.forward(x.view(), ws),
+            None => self.net.forward(obs, ws),
+        };
         Ok(self.split_outputs(out))
     }
 
@@ -465,8 +520,40 @@ impl GaussianPolicy {
         tape: &mut Tape,
     ) -> Result<GaussianBatch> {
         self.check_obs_cols(obs.ncols())?;
-        let out = self.net.forward_tape(obs, tape);
+        let out = match self.with_wrapped(obs) {
+            Some(x) => self.net.forward_tape(x.view(), tape),
+            None => self.net.forward_tape(obs, tape),
+        };
         Ok(self.split_outputs(out))
+    }
+
+    /// The prepared observations `(n, obs_dim)` followed by the wrapped
+    /// inputs, read from the raw values the normaliser's inverse gives;
+    /// `None` without wrapped inputs.
+    fn with_wrapped(&self, obs: ArrayView2<'_, f32>) -> Option<Array2<f32>> {
+        let wrapped = &self.config.wrapped_inputs;
+        if wrapped.is_empty() {
+            return None;
+        }
+        let o = self.obs_dim;
+        let mut x = Array2::zeros((obs.nrows(), o + wrapped.len()));
+        x.slice_mut(s![.., ..o]).assign(&obs);
+        for (mut row, prepared) in x.rows_mut().into_iter().zip(obs.rows()) {
+            for (k, w) in wrapped.iter().enumerate() {
+                row[o + k] = self.wrapped_value(w, prepared[w.dim] as f64) as f32;
+            }
+        }
+        Some(x)
+    }
+
+    /// A wrapped input from the prepared (normalised) value `z` of its
+    /// dimension.
+    fn wrapped_value(&self, w: &WrappedInput, z: f64) -> f64 {
+        let raw = match &self.normalizer {
+            Some(n) => n.denormalize_value(w.dim, z),
+            None => z,
+        };
+        w.value(raw)
     }
 
     /// Back-propagates a loss's gradients with respect to the means and
@@ -483,7 +570,14 @@ impl GaussianPolicy {
         grads: &mut Gradients,
     ) -> Array2<f32> {
         let g = dist.output_grad(d_mean, d_log_std);
-        self.net.backward(tape, g.view(), grads)
+        let d_input = self.net.backward(tape, g.view(), grads);
+        if self.config.wrapped_inputs.is_empty() {
+            d_input
+        } else {
+            // The wrapped inputs are read as constants (see
+            // `GaussianPolicyConfig::wrapped_inputs`).
+            d_input.slice(s![.., ..self.obs_dim]).to_owned()
+        }
     }
 
     /// Chains `d_input` (`(n, obs_dim)`, a gradient with respect to the
@@ -637,14 +731,20 @@ impl GaussianPolicy {
                 step: 0,
             });
         }
-        ws.input.resize(self.obs_dim, 0.0);
+        let o = self.obs_dim;
+        ws.input.resize(o + self.config.wrapped_inputs.len(), 0.0);
         match &self.normalizer {
-            Some(n) => n.normalize_into(obs, &mut ws.input)?,
+            Some(n) => n.normalize_into(obs, &mut ws.input[..o])?,
             None => {
                 for (r, o) in ws.input.iter_mut().zip(obs) {
                     *r = *o as f32;
                 }
             }
+        }
+        for (k, w) in self.config.wrapped_inputs.iter().enumerate() {
+            // As the batch path: read from the prepared value, so that
+            // acting and learning see the same input.
+            ws.input[o + k] = self.wrapped_value(w, ws.input[w.dim] as f64) as f32;
         }
         forward_row(&self.net, &mut ws.input, &mut ws.hidden, &mut ws.out);
         let out = &ws.out;
@@ -824,6 +924,100 @@ mod tests {
         for j in 0..2 {
             assert!((a[j] - d.mean[[0, j]]).abs() < 1e-5, "{a:?} vs {}", d.mean);
         }
+    }
+
+    #[test]
+    fn wrapped_inputs_read_the_place_in_the_period_on_both_paths() {
+        let w = WrappedInput {
+            dim: 1,
+            period: 0.5,
+        };
+        // Centres at multiples of 0.5 read 0, a quarter period reads +-0.5,
+        // and the input jumps from +1 to -1 halfway between two centres.
+        assert!(w.value(1.0).abs() < 1e-12);
+        assert!((w.value(0.125) - 0.5).abs() < 1e-12);
+        assert!((w.value(-0.625) + 0.5).abs() < 1e-12);
+        assert!((w.value(0.2499) - 0.9996).abs() < 1e-9);
+        assert!((w.value(0.2501) + 0.9996).abs() < 1e-9);
+
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        // Dimension 1 spreads little in the data, so the raw values below
+        // lie far beyond the clip: the soft tails' inverse must give them back.
+        let data = array![[0.0, 0.0, 2.0], [2.0, 0.02, -1.0]];
+        let norm = ObsNormalizer::from_data(data.view(), 5.0, 0.01)
+            .unwrap()
+            .with_soft_tails(true);
+        let cfg = GaussianPolicyConfig {
+            output_scale: 1.0,
+            wrapped_inputs: vec![w],
+            ..Default::default()
+        };
+        let pol = GaussianPolicy::new(&cfg, 3, 2, Some(norm), &mut rng).unwrap();
+        assert_eq!(pol.net().config().input, 4);
+        for y in [0.0, 0.2499, 0.2501, -0.3, 0.9] {
+            let raw = array![[0.5, y, 1.0]];
+            let x = pol.prepare_obs(raw.view()).unwrap();
+            let wide = pol.with_wrapped(x.view()).unwrap();
+            assert!(
+                (wide[[0, 3]] as f64 - w.value(y)).abs() < 1e-4,
+                "y {y}: {} vs {}",
+                wide[[0, 3]],
+                w.value(y)
+            );
+            let d = pol.distribution(x.view(), &mut Workspace::new()).unwrap();
+            let a = pol
+                .act_deterministic(raw.row(0).as_slice().unwrap())
+                .unwrap();
+            for j in 0..2 {
+                assert!((a[j] - d.mean[[0, j]]).abs() < 1e-5, "{a:?} vs {}", d.mean);
+            }
+        }
+        // The jump reaches the actions: the two sides of a line differ by
+        // more than a continuous policy's change over 0.0002.
+        let side = |y: f64| pol.act_deterministic(&[0.5, y, 1.0]).unwrap();
+        let (lo, hi) = (side(0.2499), side(0.2501));
+        assert!(
+            (lo[0] - hi[0]).abs() + (lo[1] - hi[1]).abs() > 1e-3,
+            "{lo:?} {hi:?}"
+        );
+        // The input gradient has the observation's columns.
+        let x = pol.prepare_obs(array![[0.5, 0.1, 1.0]].view()).unwrap();
+        let mut tape = Tape::new();
+        let dist = pol.distribution_tape(x.view(), &mut tape).unwrap();
+        let mut grads = pol.net().zero_grads();
+        let ones = Array2::ones((1, 2));
+        let d_in = pol.backward(&tape, &dist, ones.view(), ones.view(), &mut grads);
+        assert_eq!(d_in.dim(), (1, 3));
+        // Saved and loaded with its wrapped input.
+        let back = GaussianPolicy::from_json(&pol.to_json().unwrap()).unwrap();
+        assert_eq!(back, pol);
+    }
+
+    #[test]
+    fn wrapped_inputs_are_checked_and_absent_from_plain_files() {
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let bad_dim = GaussianPolicyConfig {
+            wrapped_inputs: vec![WrappedInput {
+                dim: 2,
+                period: 1.0,
+            }],
+            ..Default::default()
+        };
+        let e = GaussianPolicy::new(&bad_dim, 2, 1, None, &mut rng).unwrap_err();
+        assert!(e.to_string().contains("wrapped_inputs[0].dim"), "{e}");
+        let bad_period = GaussianPolicyConfig {
+            wrapped_inputs: vec![WrappedInput {
+                dim: 0,
+                period: 0.0,
+            }],
+            ..Default::default()
+        };
+        let e = bad_period.validate().unwrap_err();
+        assert!(e.to_string().contains("wrapped_inputs[0].period"), "{e}");
+        let text = serde_json::to_string(&GaussianPolicyConfig::default()).unwrap();
+        assert!(!text.contains("wrapped"), "{text}");
+        let back: GaussianPolicyConfig = serde_json::from_str(&text).unwrap();
+        assert!(back.wrapped_inputs.is_empty());
     }
 
     #[test]
