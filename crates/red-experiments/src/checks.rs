@@ -5,24 +5,33 @@
 //! words; the caller names the file.
 
 use red_rl::normalize::ObsNormalizer;
-use red_rl::policy::GaussianPolicy;
+use red_rl::policy::{GaussianPolicy, GaussianPolicyConfig};
 
 /// A policy of the run: its own settings' hidden sizes, its network's and
-/// the run's `hidden` must agree, and its normaliser must be sound.
+/// the run's (`run`) must agree, as must its wrapped inputs and the run's,
+/// and its normaliser must be sound.
 ///
 /// # Errors
 /// What disagrees, naming `what`.
 pub fn check_policy(
     what: &str,
     policy: &GaussianPolicy,
-    hidden: &[usize],
+    run: &GaussianPolicyConfig,
 ) -> std::result::Result<(), String> {
+    let hidden = &run.hidden;
     let own = &policy.config().hidden;
     let net = &policy.net().config().hidden;
     if own != hidden || net != hidden {
         return Err(format!(
             "{what}: the run's settings give hidden sizes {hidden:?}, but the saved policy has \
              {own:?} and its network {net:?}"
+        ));
+    }
+    let (saved, wanted) = (&policy.config().wrapped_inputs, &run.wrapped_inputs);
+    if saved != wanted {
+        return Err(format!(
+            "{what}: the run's settings give wrapped inputs {wanted:?}, but the saved policy has \
+             {saved:?}"
         ));
     }
     if let Some(n) = policy.normalizer() {

@@ -941,6 +941,26 @@ impl DriveTrainConfig {
             ));
         }
         let inputs = OBS_DIM + if self.last_action_input { ACT_DIM } else { 0 };
+        for (i, w) in self.policy.wrapped_inputs.iter().enumerate() {
+            if w.dim >= inputs {
+                return Err(invalid(
+                    &format!("train.policy.wrapped_inputs[{i}].dim"),
+                    format!(
+                        "dim {} is out of range: the policy has inputs 0-{}",
+                        w.dim,
+                        inputs - 1
+                    ),
+                ));
+            }
+        }
+        if !self.policy.wrapped_inputs.is_empty() && !self.policy_obs_soft_tails {
+            return Err(invalid(
+                "train.policy.wrapped_inputs",
+                "are read back through the input scaling, which the hard clip makes wrong \
+                 beyond it: set train.policy_obs_soft_tails to true or drop the wrapped inputs"
+                    .into(),
+            ));
+        }
         for (i, d) in self.policy_obs_dim_floors.iter().enumerate() {
             let field = format!("train.policy_obs_dim_floors[{i}]");
             if d.dim >= inputs {
@@ -1526,7 +1546,7 @@ impl Checkpoint {
         use crate::checks::{check_policy, check_steps};
         let train = &self.config.train;
         self.config.validate().map_err(|e| e.to_string())?;
-        check_policy("the warm start", &self.warm_start, &train.policy.hidden)?;
+        check_policy("the warm start", &self.warm_start, &train.policy)?;
         if self.done.len() > self.config.methods.len() {
             return Err(format!(
                 "{} methods are done but the run has {}",
@@ -1551,7 +1571,7 @@ impl Checkpoint {
                     st.svg.name()
                 ));
             }
-            check_policy(&what, st.svg.policy(), &train.policy.hidden)?;
+            check_policy(&what, st.svg.policy(), &train.policy)?;
             check_steps(&what, st.svg.env_steps(), train.steps)?;
         }
         Ok(())
@@ -3913,6 +3933,41 @@ mod tests {
                 "{e}"
             );
         }
+    }
+
+    #[test]
+    fn wrapped_policy_inputs_are_checked_against_the_inputs_and_the_clip() {
+        let lane = r#"{"dim":20,"period":0.6666666666666666}"#;
+        let cfg = crate::run_dir::overlay_json(
+            &DriveTrainConfig::default(),
+            &format!(r#"{{"policy":{{"wrapped_inputs":[{lane}]}}}}"#),
+            Path::new("c.json"),
+        )
+        .unwrap();
+        cfg.validate().unwrap();
+        assert_eq!(cfg.policy.wrapped_inputs[0].dim, 20);
+        for (extra, what) in [
+            (
+                r#"{"policy":{"wrapped_inputs":[{"dim":24,"period":1.0}]}}"#,
+                "wrapped_inputs[0].dim",
+            ),
+            (
+                r#"{"policy_obs_soft_tails":false}"#,
+                "policy_obs_soft_tails",
+            ),
+        ] {
+            let c = crate::run_dir::overlay_json(&cfg, extra, Path::new("c.json")).unwrap();
+            let e = c.validate().unwrap_err().to_string();
+            assert!(e.contains(what), "{e}");
+        }
+        // With the last action as input, dimension 24 exists.
+        let c = crate::run_dir::overlay_json(
+            &cfg,
+            r#"{"last_action_input":true,"policy":{"wrapped_inputs":[{"dim":24,"period":1.0}]}}"#,
+            Path::new("c.json"),
+        )
+        .unwrap();
+        c.validate().unwrap();
     }
 
     #[test]

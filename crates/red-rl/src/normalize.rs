@@ -145,6 +145,11 @@ impl ObsNormalizer {
         Ok(self)
     }
 
+    /// The clip of normalised values (`f64::MAX`: none).
+    pub fn clip(&self) -> f64 {
+        self.clip
+    }
+
     /// Whether the tails beyond `clip` are logarithmic rather than clipped.
     pub fn soft_tails(&self) -> bool {
         self.soft_tails

@@ -67,7 +67,8 @@ pub struct GaussianPolicyConfig {
     /// Extra inputs that read an observation's place within a period
     /// (our addition, empty by default): for each, the network also sees
     /// `2 (u - round(u))` with `u = x[dim] / period` of the raw
-    /// observation, in `[-1, 1]`, 0 at the multiples of `period` and +-1
+    /// observation (read back from the normalised input, so a normaliser
+    /// must have soft tails or no clip), in `[-1, 1]`, 0 at the multiples of `period` and +-1
     /// halfway between. On the driving road with `dim` the lateral
     /// position and `period` one lane, it is the offset from the nearest
     /// lane's centre, and it jumps at each lane line. The learners see the
@@ -275,6 +276,50 @@ struct SavedPolicy {
     policy: GaussianPolicy,
 }
 
+/// The observation normaliser's dimension and the wrapped inputs against
+/// `obs_dim`; wrapped inputs need the normaliser's inverse to be exact, so
+/// a normaliser with a hard clip is refused with them.
+fn check_inputs(
+    config: &GaussianPolicyConfig,
+    obs_dim: usize,
+    normalizer: Option<&ObsNormalizer>,
+) -> Result<()> {
+    if let Some(n) = normalizer
+        && n.dim() != obs_dim
+    {
+        return Err(Error::ShapeMismatch {
+            what: "policy observation normaliser".into(),
+            expected: format!("{obs_dim} dimensions"),
+            got: format!("{}", n.dim()),
+        });
+    }
+    for (i, w) in config.wrapped_inputs.iter().enumerate() {
+        if w.dim >= obs_dim {
+            return Err(Error::InvalidConfig {
+                field: format!("wrapped_inputs[{i}].dim"),
+                reason: format!(
+                    "must be below {obs_dim} (the observation's length), got {}",
+                    w.dim
+                ),
+            });
+        }
+    }
+    if let Some(n) = normalizer
+        && !config.wrapped_inputs.is_empty()
+        && !n.soft_tails()
+        && n.clip() < f64::MAX
+    {
+        return Err(Error::InvalidConfig {
+            field: "wrapped_inputs".into(),
+            reason: "read through the normaliser's inverse, which a hard clip makes wrong beyond \
+                     it: give the normaliser soft tails (ObsNormalizer::with_soft_tails; on the \
+                     driving task train.policy_obs_soft_tails) or no clip"
+                .into(),
+        });
+    }
+    Ok(())
+}
+
 /// Name written in saved policies.
 pub const POLICY_FORMAT: &str = "red-rl/gaussian-policy";
 /// Version of the saved policy format.
@@ -351,29 +396,7 @@ impl GaussianPolicy {
                 reason: "must be at least 1".into(),
             });
         }
-        if let Some(n) = &normalizer
-            && n.dim() != obs_dim
-        {
-            return Err(Error::ShapeMismatch {
-                what: "policy observation normaliser".into(),
-                expected: format!("{obs_dim} dimensions"),
-                got: format!("{}", n.dim()),
-            });
-        }
-        if let Some((i, w)) = config
-            .wrapped_inputs
-            .iter()
-            .enumerate()
-            .find(|(_, w)| w.dim >= obs_dim)
-        {
-            return Err(Error::InvalidConfig {
-                field: format!("wrapped_inputs[{i}].dim"),
-                reason: format!(
-                    "dimension {} is out of range: observations have {obs_dim}",
-                    w.dim
-                ),
-            });
-        }
+        check_inputs(config, obs_dim, normalizer.as_ref())?;
         let net_cfg = MlpConfig {
             input: obs_dim + config.wrapped_inputs.len(),
             hidden: config.hidden.clone(),
@@ -403,6 +426,26 @@ impl GaussianPolicy {
             act_dim,
             normalizer,
         })
+    }
+
+    /// Checks a loaded policy's shapes: its normaliser's and its wrapped
+    /// inputs' dimensions (as [`GaussianPolicy::new`]) and its network's
+    /// input and output widths.
+    fn check_shapes(&self) -> Result<()> {
+        check_inputs(&self.config, self.obs_dim, self.normalizer.as_ref())?;
+        let net = self.net.config();
+        let (input, output) = (
+            self.obs_dim + self.config.wrapped_inputs.len(),
+            2 * self.act_dim,
+        );
+        if net.input != input || net.output != output {
+            return Err(Error::ShapeMismatch {
+                what: "saved policy network".into(),
+                expected: format!("{input} inputs and {output} outputs"),
+                got: format!("{} and {}", net.input, net.output),
+            });
+        }
+        Ok(())
     }
 
     /// Turns the `tanh` squash of emitted actions on or off (a policy
@@ -736,8 +779,8 @@ impl GaussianPolicy {
         match &self.normalizer {
             Some(n) => n.normalize_into(obs, &mut ws.input[..o])?,
             None => {
-                for (r, o) in ws.input.iter_mut().zip(obs) {
-                    *r = *o as f32;
+                for (r, v) in ws.input.iter_mut().zip(obs) {
+                    *r = *v as f32;
                 }
             }
         }
@@ -808,6 +851,7 @@ impl GaussianPolicy {
             });
         }
         doc.policy.config.validate()?;
+        doc.policy.check_shapes()?;
         Ok(doc.policy)
     }
 
@@ -1018,6 +1062,95 @@ mod tests {
         assert!(!text.contains("wrapped"), "{text}");
         let back: GaussianPolicyConfig = serde_json::from_str(&text).unwrap();
         assert!(back.wrapped_inputs.is_empty());
+    }
+
+    #[test]
+    fn wrapped_inputs_reach_the_taped_path_and_behaviour_cloning() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        // Targets that jump at the lane lines y = +-1/3 (period 2/3): the
+        // sign of the wrapped input, which a plain network cannot follow
+        // within a small step of y.
+        let n = 400;
+        let mut states = Array2::zeros((n, 2));
+        let mut actions = Array2::zeros((n, 1));
+        let w = WrappedInput {
+            dim: 0,
+            period: 2.0 / 3.0,
+        };
+        for i in 0..n {
+            let y = -1.0 + 2.0 * i as f64 / (n - 1) as f64;
+            states[[i, 0]] = y;
+            states[[i, 1]] = 0.5;
+            actions[[i, 0]] = w.value(y).signum() * 0.5;
+        }
+        let norm = ObsNormalizer::from_data(states.view(), 5.0, 0.1)
+            .unwrap()
+            .with_soft_tails(true);
+        let cfg = GaussianPolicyConfig {
+            wrapped_inputs: vec![w],
+            ..Default::default()
+        };
+        let mut pol = GaussianPolicy::new(&cfg, 2, 1, Some(norm), &mut rng).unwrap();
+        let x = pol.prepare_obs(states.view()).unwrap();
+        let mut tape = Tape::new();
+        let taped = pol.distribution_tape(x.view(), &mut tape).unwrap();
+        let plain = pol.distribution(x.view(), &mut Workspace::new()).unwrap();
+        assert_eq!(taped, plain);
+        let bc = crate::bc::BcConfig {
+            epochs: 300,
+            ..Default::default()
+        };
+        let losses =
+            crate::bc::behavior_clone(&mut pol, states.view(), actions.view(), &bc, &mut rng)
+                .unwrap();
+        let last = *losses.last().unwrap();
+        assert!(last < 0.25 * losses[0], "{losses:?}");
+        // Either side of the line y = 1/3 the clone follows the jump.
+        let (lo, hi) = (
+            pol.act_deterministic(&[0.33, 0.5]).unwrap()[0],
+            pol.act_deterministic(&[0.34, 0.5]).unwrap()[0],
+        );
+        assert!(lo > 0.2 && hi < -0.2, "{lo} {hi}");
+    }
+
+    #[test]
+    fn loading_and_building_refuse_inputs_that_do_not_fit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        let data = array![[0.0, 1.0], [2.0, 3.0]];
+        let cfg = GaussianPolicyConfig {
+            wrapped_inputs: vec![WrappedInput {
+                dim: 1,
+                period: 1.0,
+            }],
+            ..Default::default()
+        };
+        // A hard clip makes the normaliser's inverse wrong beyond it.
+        let hard = ObsNormalizer::from_data(data.view(), 5.0, 0.1).unwrap();
+        let e = GaussianPolicy::new(&cfg, 2, 1, Some(hard), &mut rng).unwrap_err();
+        assert!(e.to_string().contains("soft tails"), "{e}");
+        let soft = ObsNormalizer::from_data(data.view(), 5.0, 0.1)
+            .unwrap()
+            .with_soft_tails(true);
+        let pol = GaussianPolicy::new(&cfg, 2, 1, Some(soft), &mut rng).unwrap();
+        let text = pol.to_json().unwrap();
+        assert!(GaussianPolicy::from_json(&text).is_ok());
+        // A saved wrapped input out of range, or a network of another width.
+        let bad_dim = text.replace(r#""dim":1,"period""#, r#""dim":2,"period""#);
+        assert_ne!(bad_dim, text);
+        let e = GaussianPolicy::from_json(&bad_dim).unwrap_err();
+        assert!(e.to_string().contains("must be below 2"), "{e}");
+        let plain = GaussianPolicy::new(&GaussianPolicyConfig::default(), 2, 1, None, &mut rng)
+            .unwrap()
+            .to_json()
+            .unwrap();
+        let no_wrap = text.replace(r#","wrapped_inputs":[{"dim":1,"period":1.0}]"#, "");
+        assert_ne!(no_wrap, text);
+        let e = GaussianPolicy::from_json(&no_wrap).unwrap_err();
+        assert!(
+            e.to_string().contains("3 and 2") || e.to_string().contains("2 inputs"),
+            "{e}"
+        );
+        assert!(GaussianPolicy::from_json(&plain).is_ok());
     }
 
     #[test]

@@ -1481,7 +1481,7 @@ impl RunState {
                 "the TRPO learner was made with other settings than config.json's trpo".into(),
             );
         }
-        crate::checks::check_policy("the policy", t.policy(), &cfg.trpo.policy.hidden)?;
+        crate::checks::check_policy("the policy", t.policy(), &cfg.trpo.policy)?;
         let expected = t.iteration() * cfg.trpo.steps_per_batch as u64;
         if t.env_steps() != expected {
             return Err(format!(

@@ -110,7 +110,7 @@ impl SacState {
                 "the SAC learner was made with other settings than config.json's sac".into(),
             );
         }
-        crate::checks::check_policy("the policy", self.sac.policy(), &cfg.sac.policy.hidden)?;
+        crate::checks::check_policy("the policy", self.sac.policy(), &cfg.sac.policy)?;
         let wants_reward = cfg.method.needs_demo();
         if wants_reward != self.reward.is_some() {
             return Err(format!(
