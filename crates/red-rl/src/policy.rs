@@ -959,13 +959,16 @@ mod tests {
             ..Default::default()
         };
         let pol = GaussianPolicy::new(&cfg, 3, 2, Some(norm), &mut rng).unwrap();
-        let raw = array![[0.5, -2.0, 7.0]];
-        let x = pol.prepare_obs(raw.view()).unwrap();
+        assert_row_matches_batch(&pol, &[0.5, -2.0, 7.0]);
+    }
+
+    /// The single-row path's action equals the batch path's mean.
+    fn assert_row_matches_batch(pol: &GaussianPolicy, raw: &[f64]) {
+        let rows = Array2::from_shape_vec((1, raw.len()), raw.to_vec()).unwrap();
+        let x = pol.prepare_obs(rows.view()).unwrap();
         let d = pol.distribution(x.view(), &mut Workspace::new()).unwrap();
-        let a = pol
-            .act_deterministic(raw.row(0).as_slice().unwrap())
-            .unwrap();
-        for j in 0..2 {
+        let a = pol.act_deterministic(raw).unwrap();
+        for j in 0..a.len() {
             assert!((a[j] - d.mean[[0, j]]).abs() < 1e-5, "{a:?} vs {}", d.mean);
         }
     }
@@ -1008,13 +1011,7 @@ mod tests {
                 wide[[0, 3]],
                 w.value(y)
             );
-            let d = pol.distribution(x.view(), &mut Workspace::new()).unwrap();
-            let a = pol
-                .act_deterministic(raw.row(0).as_slice().unwrap())
-                .unwrap();
-            for j in 0..2 {
-                assert!((a[j] - d.mean[[0, j]]).abs() < 1e-5, "{a:?} vs {}", d.mean);
-            }
+            assert_row_matches_batch(&pol, &[0.5, y, 1.0]);
         }
         // The jump reaches the actions: the two sides of a line differ by
         // more than a continuous policy's change over 0.0002.
