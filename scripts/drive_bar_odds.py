@@ -1,0 +1,88 @@
+#!/usr/bin/env python3
+"""drive_bar_odds.py [--starts N] [--bin PATH] RUN_DIR...: how likely each finished driving
+run's saved final RED policy is to meet issue 17's per-seed bar (at least 90% of the demo's
+road over 5 starts) from 5 fresh starts rather than the evaluation's fixed ones. Drives the
+policy from N deterministic starts on the demo's road (reset seeds 1000, 1001, ...; through
+`drive_eval_saved --runs N --roads ROAD`) and takes the 5 starts as drawn independently from
+those N (each start's share of the road equally likely): the chance is exact for that
+distribution (shares rounded to 0.1 points). Prints a CSV row per run (its % over the N
+starts, its crashes, the chance), then per setting and demo (runs named NAME-DEMO-sK) the
+expected number of runs that miss and the chance that none does, and the same over every run
+of the setting. Build first: `cargo build --release -p red-experiments --example
+drive_eval_saved`."""
+import json, os, re, subprocess, sys
+from collections import defaultdict
+
+args = sys.argv[1:]
+root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+starts, binary = 100, os.path.join(root, "target/release/examples/drive_eval_saved")
+while args and args[0].startswith("--"):
+    flag = args.pop(0)
+    try:
+        if flag == "--starts":
+            starts = int(args.pop(0))
+        elif flag == "--bin":
+            binary = args.pop(0)
+        else:
+            sys.exit(f"unknown option {flag}\n{__doc__}")
+    except (IndexError, ValueError):
+        sys.exit(f"{flag} needs a value\n{__doc__}")
+if not args:
+    sys.exit(__doc__)
+if starts < 5:
+    sys.exit("--starts must be at least 5")
+
+
+def pass_chance(shares, draws=5, bar=90.0):
+    """P(mean of `draws` independent picks from `shares` (% of the road) >= bar), exact on
+    shortfalls rounded to 0.1 points."""
+    # Shortfall below 100% in tenths of a point; the bar allows a total of
+    # draws * (100 - bar) points.
+    allowed = round(draws * (100.0 - bar) * 10)
+    weights = defaultdict(float)
+    for s in shares:
+        weights[round((100.0 - min(s, 100.0)) * 10)] += 1.0 / len(shares)
+    dist = {0: 1.0}
+    for _ in range(draws):
+        nxt = defaultdict(float)
+        for total, p in dist.items():
+            for short, q in weights.items():
+                if total + short <= allowed:
+                    nxt[total + short] += p * q
+        dist = nxt
+    return min(sum(dist.values()), 1.0)
+
+
+print("run,demo_road_pct_all,starts,crashes,pass_chance_5_fresh_starts")
+groups = defaultdict(list)
+for run in args:
+    cfg = json.load(open(os.path.join(run, "config.json")))
+    road, seed = cfg["drive"]["road_length"], cfg["drive"]["track_seed"]
+    done = subprocess.run([binary, "--runs", str(starts), "--roads", str(seed), run],
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        print(f"# skipped {run}: {binary} failed: {done.stderr.strip()}", file=sys.stderr)
+        continue
+    shares, ends = None, None
+    for line in done.stdout.splitlines():
+        m = re.match(r"road (\d+) \(the demonstration's\): ([\d.]+)% \| (.*)$", line)
+        if m:
+            eps = m.group(3).split(" | ")
+            shares = [100.0 * min(float(e.split()[0]), road) / road for e in eps]
+            ends = [e.split()[1] for e in eps]
+    if shares is None or len(shares) != starts:
+        sys.exit(f"{run}: expected {starts} episodes on the demo's road (track seed {seed}) "
+                 f"in drive_eval_saved's output")
+    p = pass_chance(shares)
+    name = os.path.basename(run.rstrip("/"))
+    print(f"{name},{sum(shares) / len(shares):.1f},{starts},{ends.count('crash')},{p:.3f}")
+    m = re.match(r"(.+?)-(scripted|s\d+)-s\d+$", name)
+    if m:
+        groups[(m.group(1), m.group(2))].append(p)
+        groups[(m.group(1), "all")].append(p)
+for (setting, demo), ps in sorted(groups.items()):
+    none_miss = 1.0
+    for p in ps:
+        none_miss *= p
+    print(f"# {setting} {demo}: {len(ps)} runs, expected misses {sum(1 - p for p in ps):.2f}, "
+          f"chance that none misses {none_miss:.3f}", file=sys.stderr)
