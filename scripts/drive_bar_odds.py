@@ -4,11 +4,11 @@ run's saved final RED policy is to meet issue 17's per-seed bar (at least 90% of
 road over 5 starts) from 5 fresh starts rather than the evaluation's fixed ones. Drives the
 policy from N deterministic starts on the demo's road (reset seeds 1000, 1001, ...; through
 `drive_eval_saved --runs N --roads ROAD`) and takes the 5 starts as drawn independently from
-those N (each start's share of the road equally likely): the chance is exact for that
-distribution (shares rounded to 0.1 points). Prints a CSV row per run (its % over the N
-starts, its crashes, the chance), then per setting and demo (runs named NAME-DEMO-sK) the
+those N (each start's distance equally likely): the chance is exact for that distribution
+(distances in whole decimetres, as drive_eval_saved prints them). Prints a CSV row per run
+(its % over the N starts, its crashes, the chance), then on stderr, per setting and demo, the
 expected number of runs that miss and the chance that none does, and the same over every run
-of the setting. Build first: `cargo build --release -p red-experiments --example
+of the setting (runs not named NAME-DEMO-sK are left out of these, with a note). Build first: `cargo build --release -p red-experiments --example
 drive_eval_saved`."""
 import json, os, re, subprocess, sys
 from collections import defaultdict
@@ -33,15 +33,15 @@ if starts < 5:
     sys.exit("--starts must be at least 5")
 
 
-def pass_chance(shares, draws=5, bar=90.0):
-    """P(mean of `draws` independent picks from `shares` (% of the road) >= bar), exact on
-    shortfalls rounded to 0.1 points."""
-    # Shortfall below 100% in tenths of a point; the bar allows a total of
-    # draws * (100 - bar) points.
-    allowed = round(draws * (100.0 - bar) * 10)
+def pass_chance(dists, road, draws=5, bar=90.0):
+    """P(the mean share of the road over `draws` independent picks from `dists` (metres,
+    each capped at `road`) >= bar %), exact on distances in whole decimetres."""
+    # Shortfalls below the road's end in decimetres; the bar allows a total
+    # of draws * road * (100 - bar) / 100 metres.
+    allowed = round(draws * road * (100.0 - bar) / 100.0 * 10)
     weights = defaultdict(float)
-    for s in shares:
-        weights[round((100.0 - min(s, 100.0)) * 10)] += 1.0 / len(shares)
+    for d in dists:
+        weights[round((road - min(d, road)) * 10)] += 1.0 / len(dists)
     dist = {0: 1.0}
     for _ in range(draws):
         nxt = defaultdict(float)
@@ -63,23 +63,26 @@ for run in args:
     if done.returncode != 0:
         print(f"# skipped {run}: {binary} failed: {done.stderr.strip()}", file=sys.stderr)
         continue
-    shares, ends = None, None
+    dists, ends = None, None
     for line in done.stdout.splitlines():
         m = re.match(r"road (\d+) \(the demonstration's\): ([\d.]+)% \| (.*)$", line)
         if m:
             eps = m.group(3).split(" | ")
-            shares = [100.0 * min(float(e.split()[0]), road) / road for e in eps]
+            dists = [float(e.split()[0]) for e in eps]
             ends = [e.split()[1] for e in eps]
-    if shares is None or len(shares) != starts:
+    if dists is None or len(dists) != starts:
         sys.exit(f"{run}: expected {starts} episodes on the demo's road (track seed {seed}) "
                  f"in drive_eval_saved's output")
-    p = pass_chance(shares)
+    p = pass_chance(dists, road)
     name = os.path.basename(run.rstrip("/"))
-    print(f"{name},{sum(shares) / len(shares):.1f},{starts},{ends.count('crash')},{p:.3f}")
+    pct = 100.0 * sum(min(d, road) for d in dists) / (road * len(dists))
+    print(f"{name},{pct:.1f},{starts},{ends.count('crash')},{p:.3f}")
     m = re.match(r"(.+?)-(scripted|s\d+)-s\d+$", name)
     if m:
         groups[(m.group(1), m.group(2))].append(p)
         groups[(m.group(1), "all")].append(p)
+    else:
+        print(f"# {name}: not NAME-DEMO-sK, left out of the summaries", file=sys.stderr)
 for (setting, demo), ps in sorted(groups.items()):
     none_miss = 1.0
     for p in ps:
