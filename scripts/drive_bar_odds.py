@@ -15,18 +15,13 @@ from collections import defaultdict
 
 args = sys.argv[1:]
 root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-starts, binary = 100, os.path.join(root, "target/release/examples/drive_eval_saved")
-while args and args[0].startswith("--"):
-    flag = args.pop(0)
-    try:
-        if flag == "--starts":
-            starts = int(args.pop(0))
-        elif flag == "--bin":
-            binary = args.pop(0)
-        else:
-            sys.exit(f"unknown option {flag}\n{__doc__}")
-    except (IndexError, ValueError):
-        sys.exit(f"{flag} needs a value\n{__doc__}")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from drive_flags import parse  # noqa: E402  (the options every drive script reads alike)
+
+flags = parse(args, {"starts": 100,
+                     "bin": os.path.join(root, "target/release/examples/drive_eval_saved")},
+              __doc__)
+starts, binary = flags["starts"], flags["bin"]
 if not args:
     sys.exit(__doc__)
 if starts < 5:
