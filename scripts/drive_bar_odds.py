@@ -14,18 +14,10 @@ import json, os, re, subprocess, sys
 from collections import defaultdict
 
 args = sys.argv[1:]
-root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from drive_flags import parse  # noqa: E402  (the options every drive script reads alike)
+from drive_flags import eval_saved_options  # noqa: E402  (read alike by the drive scripts)
 
-flags = parse(args, {"starts": 100,
-                     "bin": os.path.join(root, "target/release/examples/drive_eval_saved")},
-              __doc__)
-starts, binary = flags["starts"], flags["bin"]
-if not args:
-    sys.exit(__doc__)
-if starts < 5:
-    sys.exit("--starts must be at least 5")
+starts, binary = eval_saved_options(args, __doc__)
 
 
 def pass_chance(dists, road, draws=5, bar=90.0):
