@@ -68,8 +68,8 @@ pub struct GaussianPolicyConfig {
     /// (our addition, empty by default): for each, the network also sees
     /// `2 (u - round(u))` with `u = x[dim] / period` of the raw
     /// observation (read back from the normalised input, so a normaliser
-    /// must have soft tails or no clip), in `[-1, 1]`, 0 at the multiples of `period` and +-1
-    /// halfway between. On the driving road with `dim` the lateral
+    /// must have soft tails or no clip), in `[-1, 1]`, 0 at the multiples
+    /// of `period` and +-1 halfway between. On the driving road with `dim` the lateral
     /// position and `period` one lane, it is the offset from the nearest
     /// lane's centre, and it jumps at each lane line. The learners see the
     /// input as constant: its slope is not chained to the observation in
