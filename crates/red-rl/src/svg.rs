@@ -64,6 +64,17 @@ fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
 
+/// `eta_scale`'s default: SVG(1)-ER's policy step.
+fn default_eta_scale() -> f64 {
+    1.0
+}
+
+/// Whether `eta_scale` is the default (then not written, so that files of
+/// runs without it read in builds before it).
+fn is_default_eta_scale(v: &f64) -> bool {
+    *v == default_eta_scale()
+}
+
 /// Settings of [`Svg1`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -208,6 +219,16 @@ pub struct SvgConfig {
     /// which is laid over the driving defaults) keeps its value; a file
     /// without it reads as 1.
     pub value_nstep: usize,
+    /// Scale of the inferred policy noise in the policy step (our
+    /// addition). SVG(1)-ER (1) takes the objective's gradient at the
+    /// replayed action `mu + sigma eta`, so the policy ascends the action
+    /// value smoothed by the exploration noise. 0 takes it at the policy's
+    /// mean `mu`, the action a deterministic evaluation takes (the
+    /// inferred model noise is still added, as it is for any `mu` that has
+    /// moved since the step was stored); values between scale `eta`. Must
+    /// lie in [0, 1]. Not written at 1.
+    #[serde(skip_serializing_if = "is_default_eta_scale")]
+    pub eta_scale: f64,
 }
 
 impl Default for SvgConfig {
@@ -241,6 +262,7 @@ impl Default for SvgConfig {
             sil_weight: 0.0,
             sil_episodes: 4,
             value_nstep: 1,
+            eta_scale: default_eta_scale(),
         }
     }
 }
@@ -282,6 +304,12 @@ impl SvgConfig {
             if v == 0 {
                 return bad(f, "must be at least 1".into());
             }
+        }
+        if !(0.0..=1.0).contains(&self.eta_scale) {
+            return bad(
+                "eta_scale",
+                format!("must lie in [0, 1], got {}", self.eta_scale),
+            );
         }
         if !(self.iw_clip.is_finite() && self.iw_clip >= 1.0) {
             return bad(
@@ -373,7 +401,7 @@ pub type SvgBatch = Batch;
 /// the current parameters by [`Svg1::policy_inputs`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct PolicyInputs {
-    /// Inferred policy noise `(b, act_dim)`.
+    /// Inferred policy noise `(b, act_dim)`, times `eta_scale`.
     pub eta: Array2<f64>,
     /// Inferred model noise `(b, obs_dim)`, in prepared-observation units.
     pub xi: Array2<f64>,
@@ -863,7 +891,8 @@ impl Svg1 {
         let xn = self.policy.prepare_obs(batch.next_states.view())?;
         let dist = self.dist_fixed(self.policy.distribution(x.view(), &mut Workspace::new())?);
         let mut eta = &batch.actions - &dist.mean;
-        eta.zip_mut_with(&dist.log_std, |e, &ls| *e *= (-ls).exp());
+        let scale = self.config.eta_scale;
+        eta.zip_mut_with(&dist.log_std, |e, &ls| *e *= scale * (-ls).exp());
         let input = Self::model_input(x.view(), batch.actions.view());
         let pred = self.model.predict(input.view());
         let xi = (&xn - &x - &pred).mapv(|v| v as f64);

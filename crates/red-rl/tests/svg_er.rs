@@ -328,6 +328,20 @@ fn config_validation_names_the_field() {
             },
             "value_nstep",
         ),
+        (
+            SvgConfig {
+                eta_scale: 1.5,
+                ..SvgConfig::default()
+            },
+            "eta_scale",
+        ),
+        (
+            SvgConfig {
+                eta_scale: f64::NAN,
+                ..SvgConfig::default()
+            },
+            "eta_scale",
+        ),
     ] {
         let e = config.validate().unwrap_err().to_string();
         assert!(e.contains(field), "{e}");
@@ -890,6 +904,68 @@ fn lookahead_scores_are_the_policy_objective_at_zero_noise() {
         )
         .unwrap();
     assert_eq!(again, with_r);
+}
+
+/// `eta_scale` scales the inferred policy noise and nothing else: at 0 the
+/// policy step's objective is the lookahead score at the policy's mean
+/// (with the same model noise), at 0.5 the noise is half of SVG(1)-ER's,
+/// and the setting is written only when it is not 1.
+#[test]
+fn eta_scale_moves_the_policy_step_toward_the_mean_action() {
+    let at = |scale: f64| {
+        let config = SvgConfig {
+            hidden: vec![8],
+            gamma: 0.9,
+            learning_starts: 0,
+            eta_scale: scale,
+            ..SvgConfig::default()
+        };
+        // No policy step within 60 steps (policy_delay 500): the three
+        // learners are the same but for the setting.
+        let (mut svg, mut rng) = fresh(9, &config);
+        train_plain(&mut svg, 60, &mut rng);
+        let mut batch = svg.sample(16, &mut rng).unwrap();
+        batch.terminated = vec![false; 16];
+        let inputs = svg.policy_inputs(&batch).unwrap();
+        (svg, batch, inputs)
+    };
+    let (full, batch, one) = at(1.0);
+    let (_, _, half) = at(0.5);
+    let (zero_learner, _, zero) = at(0.0);
+    assert!(one.eta.iter().any(|e| e.abs() > 0.1), "{:?}", one.eta);
+    for (h, o) in half.eta.iter().zip(&one.eta) {
+        assert!((h - 0.5 * o).abs() < 1e-9, "{h} against half of {o}");
+    }
+    assert!(zero.eta.iter().all(|e| *e == 0.0));
+    assert_eq!(zero.xi, one.xi);
+    assert_eq!(zero.weights, one.weights);
+    // At 0 the objective is r(s, mu) + gamma V(x + f(x, mu) + xi): with
+    // the model noise and weights of the replayed actions, the same as
+    // SVG(1)-ER's objective with eta set to 0 by hand.
+    let by_hand = red_rl::svg::PolicyInputs {
+        eta: Array2::zeros(one.eta.dim()),
+        ..one.clone()
+    };
+    let (o0, g0) = zero_learner
+        .policy_objective(&batch, &zero, &ReachReward)
+        .unwrap();
+    let (oh, gh) = full
+        .policy_objective(&batch, &by_hand, &ReachReward)
+        .unwrap();
+    assert!((o0 - oh).abs() < 1e-12, "{o0} against {oh}");
+    assert_eq!(g0.flat(), gh.flat());
+    let (o1, _) = full.policy_objective(&batch, &one, &ReachReward).unwrap();
+    assert!((o1 - o0).abs() > 1e-6, "the replayed actions score {o1}");
+    let written = |scale: f64| {
+        serde_json::to_string(&SvgConfig {
+            eta_scale: scale,
+            ..SvgConfig::default()
+        })
+        .unwrap()
+    };
+    assert!(!written(1.0).contains("eta_scale"));
+    let back: SvgConfig = serde_json::from_str(&written(0.25)).unwrap();
+    assert_eq!(back.eta_scale, 0.25);
 }
 
 /// The temporal smoothness term pulls the mean actions of consecutive
