@@ -92,6 +92,19 @@ pub struct DriveConfig {
     /// layout is fixed for a config; `Env::reset`'s seed only draws the
     /// start noise, so evaluations run on the same track, as in the paper.
     pub track_seed: u64,
+    /// A margin around the driven car's body for collisions, metres (our
+    /// addition, for training episodes): the car collides when its body
+    /// grown by this on every side touches a stopped car or a wall. The
+    /// lidar, the obstacles and everything else are unchanged. 0 (the
+    /// default, and not written): the body itself.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub collision_margin: f64,
+}
+
+/// Whether a length is 0 (then not written, so that files without it read
+/// in builds before it).
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl Default for DriveConfig {
@@ -160,6 +173,7 @@ impl Default for DriveConfig {
             heading_scale: 0.5,
             time_limit: 1200,
             track_seed: 0,
+            collision_margin: 0.0,
         }
     }
 }
@@ -280,12 +294,24 @@ impl DriveConfig {
         non_negative("start_speed_noise", self.start_speed_noise)?;
         non_negative("start_heading_noise", self.start_heading_noise)?;
         let free = 0.5 * (self.lane_width - self.car_width);
-        if self.start_lateral_noise >= free {
+        non_negative("collision_margin", self.collision_margin)?;
+        if self.collision_margin >= free {
+            return Err(Error::InvalidConfig {
+                field: "collision_margin",
+                reason: format!(
+                    "must leave the car room in its lane: below {free}, got {}",
+                    self.collision_margin
+                ),
+            });
+        }
+        let room = free - self.collision_margin;
+        if self.start_lateral_noise >= room {
             return Err(Error::InvalidConfig {
                 field: "start_lateral_noise",
                 reason: format!(
-                    "must keep the car inside its lane: below {free}, got {}",
-                    self.start_lateral_noise
+                    "must keep the car inside its lane: below {room} (half the lane's free \
+                     width less collision_margin {}), got {}",
+                    self.collision_margin, self.start_lateral_noise
                 ),
             });
         }

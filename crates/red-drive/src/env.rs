@@ -114,10 +114,11 @@ impl World {
             0.5 * config.car_length as f32,
             0.5 * config.car_width as f32,
         );
+        let grown = half + Vector::splat(config.collision_margin as f32);
         Ok(Self {
             config: config.clone(),
             track: Track::generate(config),
-            car: Cuboid::new(half),
+            car: Cuboid::new(grown),
             obstacle: Cuboid::new(half),
             wall: Cuboid::new(Vector::new(
                 WALL_HALF_LENGTH as f32,
@@ -194,10 +195,11 @@ impl World {
         }
     }
 
-    /// Whether the car's body overlaps an obstacle or a wall.
+    /// Whether the car's body (grown by `collision_margin`) overlaps an
+    /// obstacle or a wall.
     pub fn collides(&self, car: &CarState) -> bool {
         let pose = Pose::new(Vector::ZERO, car.heading as f32);
-        let reach = self.config.car_length + 1.0;
+        let reach = self.config.car_length + 2.0 * self.config.collision_margin + 1.0;
         for o in self.track.between(car.x - reach, car.x + reach) {
             let other =
                 Pose::from_translation(Vector::new((o.x - car.x) as f32, (o.y - car.y) as f32));
@@ -207,7 +209,9 @@ impl World {
         }
         // Cheap exact pre-check: the car's lateral extent against the road.
         let (s, c) = car.heading.sin_cos();
-        let extent = 0.5 * self.config.car_length * s.abs() + 0.5 * self.config.car_width * c.abs();
+        let m = self.config.collision_margin;
+        let extent = (0.5 * self.config.car_length + m) * s.abs()
+            + (0.5 * self.config.car_width + m) * c.abs();
         if car.y.abs() + extent < self.config.half_width() - 1e-3 {
             return false;
         }
@@ -912,6 +916,67 @@ impl Env for DriveEnv {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The margin grows the driven car's body only: a car that passes a
+    /// stopped car (or the wall) with 0.25 m to spare collides with a
+    /// margin of 0.3 and not with 0.2; the lidar reads the same; the
+    /// margin is checked against the lane's room.
+    #[test]
+    fn a_collision_margin_grows_the_car_and_nothing_else() {
+        let plain = World::new(&DriveConfig::default()).unwrap();
+        let c = plain.config().clone();
+        let first = plain.track().obstacles[0];
+        // Beside the first stopped car, on the road's side of it, with 0.25
+        // m of air between the bodies.
+        let beside = CarState {
+            x: first.x,
+            y: first.y - first.y.signum() * (c.car_width + 0.25),
+            heading: 0.0,
+            speed: 20.0,
+        };
+        // Before the first car, 0.25 m from the left wall.
+        let by_wall = CarState {
+            x: 10.0,
+            y: c.half_width() - 0.5 * c.car_width - 0.25,
+            ..beside
+        };
+        let with = |m: f64| {
+            World::new(&DriveConfig {
+                collision_margin: m,
+                ..c.clone()
+            })
+            .unwrap()
+        };
+        for car in [beside, by_wall] {
+            assert!(!plain.collides(&car), "{car:?}");
+            assert!(!with(0.2).collides(&car), "{car:?}");
+            assert!(with(0.3).collides(&car), "{car:?}");
+        }
+        let (mut a, mut b) = ([0.0; NUM_RAYS], [0.0; NUM_RAYS]);
+        plain.lidar(&beside, &mut a);
+        with(0.3).lidar(&beside, &mut b);
+        assert_eq!(a, b);
+        // Written only when set, read back when set.
+        assert!(!serde_json::to_string(&c).unwrap().contains("margin"));
+        let json = serde_json::to_string(&with(0.3).config).unwrap();
+        let back: DriveConfig = serde_json::from_str(&json).unwrap();
+        assert_eq!(back.collision_margin, 0.3);
+        // The lane's free half-width is 0.85 m; the start noise is 0.3 m.
+        for (m, field) in [
+            (-0.1, "collision_margin"),
+            (0.85, "collision_margin"),
+            (0.6, "start_lateral_noise"),
+        ] {
+            let e = DriveConfig {
+                collision_margin: m,
+                ..c.clone()
+            }
+            .validate()
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains(field), "{m}: {e}");
+        }
+    }
     #[test]
     fn no_poses_move_to_nothing() {
         let world = World::new(&DriveConfig::default()).unwrap();

@@ -316,6 +316,16 @@ pub struct DriveTrainConfig {
     /// `obstacle_spacing_jitter` is 50 m. `None` (the default) keeps it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub train_obstacle_spacing_jitter: Option<f64>,
+    /// A margin around the car's body for the training episodes' collisions,
+    /// metres (our addition, the road's `collision_margin`): a training
+    /// episode ends with a crash when the car comes within this of a
+    /// stopped car or a wall, so the learner is charged for the close
+    /// passes from which a slightly different start crashes. The lidar
+    /// and the roads are unchanged; checks and evaluations keep the body
+    /// itself. `None` (the default): no margin. Must stay below half the
+    /// lane's free width less the training start noise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub train_collision_margin: Option<f64>,
     /// The terminal heuristic's penalty `-σ2 r̄` at every crash (our
     /// addition; RED and AE, the methods with the heuristic). The paper's
     /// test (Eq. 8) penalises an ending only when its final pair's reward
@@ -690,6 +700,7 @@ impl Default for DriveTrainConfig {
             train_start_heading_noise: None,
             train_obstacle_spacing_min: None,
             train_obstacle_spacing_jitter: None,
+            train_collision_margin: None,
             penalise_every_crash: false,
             spare_the_finish: false,
             stall_end: Some(StallRule {
@@ -1185,7 +1196,8 @@ impl DriveRunConfig {
             .validate()
             .with_context(|| {
                 "train.train_start_lateral_noise / train.train_start_heading_noise / \
-                 train.train_obstacle_spacing_min / train.train_obstacle_spacing_jitter"
+                 train.train_obstacle_spacing_min / train.train_obstacle_spacing_jitter / \
+                 train.train_collision_margin"
             })
     }
 
@@ -2704,7 +2716,8 @@ impl EpisodeHooks<Learner, ChaCha8Rng> for MethodHooks<'_> {
 }
 
 /// The road settings of the training episodes: the run's, with the
-/// training start noise and obstacle gaps of `cfg` where it sets them.
+/// training start noise, obstacle gaps and collision margin of `cfg` where
+/// it sets them.
 fn training_road(drive: &DriveConfig, cfg: &DriveTrainConfig) -> DriveConfig {
     DriveConfig {
         obstacle_spacing_min: cfg
@@ -2719,6 +2732,7 @@ fn training_road(drive: &DriveConfig, cfg: &DriveTrainConfig) -> DriveConfig {
         start_heading_noise: cfg
             .train_start_heading_noise
             .unwrap_or(drive.start_heading_noise),
+        collision_margin: cfg.train_collision_margin.unwrap_or(drive.collision_margin),
         ..drive.clone()
     }
 }
@@ -3694,6 +3708,35 @@ mod tests {
         c.train.train_start_lateral_noise = Some(f64::NAN);
         let e = c.validate().unwrap_err().to_string();
         assert!(e.contains("train.train_start_lateral_noise"), "{e}");
+    }
+
+    #[test]
+    fn a_training_collision_margin_changes_the_training_road_only_and_is_checked() {
+        let mut c = DriveRunConfig::new("x.json", DriveConfig::default());
+        assert!(!serde_json::to_string(&c.train).unwrap().contains("margin"));
+        c.train.train_collision_margin = Some(0.3);
+        c.validate().unwrap();
+        let t = training_road(&c.drive, &c.train);
+        assert_eq!(t.collision_margin, 0.3);
+        assert_eq!(c.drive.collision_margin, 0.0);
+        assert_eq!(
+            DriveConfig {
+                collision_margin: 0.0,
+                ..t
+            },
+            c.drive
+        );
+        let json = serde_json::to_string(&c.train).unwrap();
+        let back: DriveTrainConfig = serde_json::from_str(&json).unwrap();
+        assert_eq!(back.train_collision_margin, Some(0.3));
+        // With the start noise (0.3 m) no room is left in the lane: refused
+        // before any training, naming the field.
+        c.train.train_collision_margin = Some(0.6);
+        let e = format!("{:#}", c.validate().unwrap_err());
+        assert!(e.contains("train_collision_margin"), "{e}");
+        c.train.train_collision_margin = Some(f64::NAN);
+        let e = format!("{:#}", c.validate().unwrap_err());
+        assert!(e.contains("collision_margin"), "{e}");
     }
 
     #[test]
