@@ -917,10 +917,11 @@ impl Env for DriveEnv {
 mod tests {
     use super::*;
 
-    /// The margin grows the driven car's body only: a car that passes a
-    /// stopped car (or the wall) with 0.25 m to spare collides with a
-    /// margin of 0.3 and not with 0.2; the lidar reads the same; the
-    /// margin is checked against the lane's room.
+    /// The margin grows the driven car's body only: a car beside or behind
+    /// a stopped car, or by the wall, with 0.25 m to spare collides with a
+    /// margin of 0.3 and not with 0.2 (also turned, through the wall's
+    /// pre-check); the lidar reads the same; the margin is checked against
+    /// the lane's room.
     #[test]
     fn a_collision_margin_grows_the_car_and_nothing_else() {
         let plain = World::new(&DriveConfig::default()).unwrap();
@@ -940,6 +941,12 @@ mod tests {
             y: c.half_width() - 0.5 * c.car_width - 0.25,
             ..beside
         };
+        // Right behind the first stopped car, 0.25 m short of its tail.
+        let behind = CarState {
+            x: first.x - c.car_length - 0.25,
+            y: first.y,
+            ..beside
+        };
         let with = |m: f64| {
             World::new(&DriveConfig {
                 collision_margin: m,
@@ -947,11 +954,25 @@ mod tests {
             })
             .unwrap()
         };
-        for car in [beside, by_wall] {
+        for car in [beside, by_wall, behind] {
             assert!(!plain.collides(&car), "{car:?}");
             assert!(!with(0.2).collides(&car), "{car:?}");
             assert!(with(0.3).collides(&car), "{car:?}");
         }
+        // Turned 0.3 rad toward the left wall, its corner 0.25 m from it:
+        // the grown corner reaches m (sin 0.3 + cos 0.3) = 1.25 m further
+        // out, so 0.15 (0.19 m) misses the wall and 0.3 (0.38 m) hits it.
+        let h: f64 = 0.3;
+        let reach = 0.5 * c.car_length * h.sin() + 0.5 * c.car_width * h.cos();
+        let turned = CarState {
+            x: 10.0,
+            y: c.half_width() - reach - 0.25,
+            heading: h,
+            speed: 20.0,
+        };
+        assert!(!plain.collides(&turned));
+        assert!(!with(0.15).collides(&turned));
+        assert!(with(0.3).collides(&turned));
         let (mut a, mut b) = ([0.0; NUM_RAYS], [0.0; NUM_RAYS]);
         plain.lidar(&beside, &mut a);
         with(0.3).lidar(&beside, &mut b);
@@ -963,9 +984,9 @@ mod tests {
         assert_eq!(back.collision_margin, 0.3);
         // The lane's free half-width is 0.85 m; the start noise is 0.3 m.
         for (m, field) in [
-            (-0.1, "collision_margin"),
-            (0.85, "collision_margin"),
-            (0.6, "start_lateral_noise"),
+            (-0.1, "field `collision_margin`"),
+            (0.85, "field `collision_margin`"),
+            (0.6, "field `start_lateral_noise`"),
         ] {
             let e = DriveConfig {
                 collision_margin: m,

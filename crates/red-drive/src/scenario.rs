@@ -140,10 +140,41 @@ pub fn differences(a: &DriveConfig, b: &DriveConfig) -> Vec<String> {
     else {
         return vec!["(not comparable)".into()];
     };
-    x.iter()
-        .filter_map(|(k, v)| {
-            let w = y.get(k)?;
-            (v != w).then(|| format!("{k}: {v} -> {w}"))
+    // A field at its default may be left out of the JSON (for example
+    // `collision_margin`): such a field reads "(default)".
+    let shown = |v: Option<&serde_json::Value>| v.map_or("(default)".into(), |v| v.to_string());
+    let mut keys: Vec<&String> = x.keys().collect();
+    keys.extend(y.keys().filter(|k| !x.contains_key(*k)));
+    keys.into_iter()
+        .filter_map(|k| {
+            let (v, w) = (x.get(k), y.get(k));
+            (v != w).then(|| format!("{k}: {} -> {}", shown(v), shown(w)))
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A field left out of the JSON at its default still counts: two roads
+    /// that differ only in `collision_margin` name it, either way round.
+    #[test]
+    fn differences_name_a_field_written_on_one_side_only() {
+        let a = DriveConfig::default();
+        assert!(differences(&a, &a).is_empty());
+        let b = DriveConfig {
+            collision_margin: 0.2,
+            track_seed: 4,
+            ..a.clone()
+        };
+        assert_eq!(
+            differences(&a, &b),
+            ["track_seed: 0 -> 4", "collision_margin: (default) -> 0.2"]
+        );
+        assert_eq!(
+            differences(&b, &a),
+            ["collision_margin: 0.2 -> (default)", "track_seed: 4 -> 0"]
+        );
+    }
 }

@@ -317,13 +317,18 @@ pub struct DriveTrainConfig {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub train_obstacle_spacing_jitter: Option<f64>,
     /// A margin around the car's body for the training episodes' collisions,
-    /// metres (our addition, the road's `collision_margin`): a training
-    /// episode ends with a crash when the car comes within this of a
-    /// stopped car or a wall, so the learner is charged for the close
-    /// passes from which a slightly different start crashes. The lidar
-    /// and the roads are unchanged; checks and evaluations keep the body
-    /// itself. `None` (the default): no margin. Must stay below half the
-    /// lane's free width less the training start noise.
+    /// metres (our addition; it sets the training road's
+    /// `collision_margin`): a training episode ends with a crash when the
+    /// car's body grown by this on every side touches a stopped car or a
+    /// wall, so the learner is charged for the close passes from which a
+    /// slightly different start crashes. The lidar and the roads are
+    /// unchanged; checks and evaluations drive the run's road (no margin
+    /// unless its own `collision_margin` sets one). `None` (the default)
+    /// keeps the road's own. Must stay below half the lane's free width
+    /// less the training start noise. Start states taken from the
+    /// demonstration (`demo_starts`) or from before a crash
+    /// (`crash_restarts`) are not checked against it: one closer than the
+    /// margin ends at its first step.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub train_collision_margin: Option<f64>,
     /// The terminal heuristic's penalty `-σ2 r̄` at every crash (our
@@ -3733,10 +3738,16 @@ mod tests {
         // before any training, naming the field.
         c.train.train_collision_margin = Some(0.6);
         let e = format!("{:#}", c.validate().unwrap_err());
-        assert!(e.contains("train_collision_margin"), "{e}");
+        assert!(
+            e.contains("train_collision_margin") && e.contains("`start_lateral_noise`"),
+            "{e}"
+        );
         c.train.train_collision_margin = Some(f64::NAN);
         let e = format!("{:#}", c.validate().unwrap_err());
-        assert!(e.contains("collision_margin"), "{e}");
+        assert!(
+            e.contains("`collision_margin`") && e.contains("finite"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -222,11 +222,13 @@ pub struct SvgConfig {
     /// Scale of the inferred policy noise in the policy step (our
     /// addition). SVG(1)-ER (1) takes the objective's gradient at the
     /// replayed action `mu + sigma eta`, so the policy ascends the action
-    /// value smoothed by the exploration noise. 0 takes it at the policy's
-    /// mean `mu`, the action a deterministic evaluation takes (the
-    /// inferred model noise is still added, as it is for any `mu` that has
-    /// moved since the step was stored); values between scale `eta`. Must
-    /// lie in [0, 1]. Not written at 1.
+    /// value smoothed by the exploration noise. 0 takes it at the current
+    /// policy's mean `mu` (the inferred model noise and the importance
+    /// weights of the replayed action are kept, as they are for any `mu`
+    /// that has moved since the step was stored); values between scale
+    /// `eta`. With a learned std (no `fixed_std`) the objective's pull on
+    /// `sigma` scales with it too, and at 0 there is none. Must lie in
+    /// [0, 1]. Not written at 1.
     #[serde(skip_serializing_if = "is_default_eta_scale")]
     pub eta_scale: f64,
 }

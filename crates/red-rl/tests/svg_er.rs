@@ -907,9 +907,9 @@ fn lookahead_scores_are_the_policy_objective_at_zero_noise() {
 }
 
 /// `eta_scale` scales the inferred policy noise and nothing else: at 0 the
-/// policy step's objective is the lookahead score at the policy's mean
-/// (with the same model noise), at 0.5 the noise is half of SVG(1)-ER's,
-/// and the setting is written only when it is not 1.
+/// policy step's objective is SVG(1)-ER's with `eta` set to 0 (the
+/// policy's mean, the same model noise and weights), at 0.5 the noise is
+/// half of SVG(1)-ER's, and the setting is written only when it is not 1.
 #[test]
 fn eta_scale_moves_the_policy_step_toward_the_mean_action() {
     let at = |scale: f64| {
