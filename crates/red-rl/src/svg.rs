@@ -231,6 +231,18 @@ pub struct SvgConfig {
     /// [0, 1]. Not written at 1.
     #[serde(skip_serializing_if = "is_default_eta_scale")]
     pub eta_scale: f64,
+    /// A second value function (our addition, after the clipped double
+    /// estimate of Fujimoto et al. 2018, TD3): two value networks, each
+    /// with its target, learn from the same targets, and wherever the
+    /// learner reads a value (the bootstrap of the targets, the policy
+    /// step's `V(x')`, the self-imitation mask) it takes the smaller of
+    /// the two, so a value that one network overrates where data is thin
+    /// is not climbed. The policy step's gradient flows through the
+    /// smaller network, row by row. Off by default (one network, as in
+    /// Heess et al.; no random number is drawn for the second). Not
+    /// written when off.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub twin_value: bool,
 }
 
 impl Default for SvgConfig {
@@ -265,6 +277,7 @@ impl Default for SvgConfig {
             sil_episodes: 4,
             value_nstep: 1,
             eta_scale: default_eta_scale(),
+            twin_value: false,
         }
     }
 }
@@ -450,6 +463,57 @@ pub struct Svg1 {
     /// The kept episodes of `sil_weight`, highest own return first.
     #[serde(default)]
     sil: Vec<SilEpisode>,
+    /// The second value function of `twin_value`: network, target and
+    /// optimiser.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    twin: Option<TwinValue>,
+}
+
+/// The second value network of `SvgConfig::twin_value`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct TwinValue {
+    value: Mlp,
+    target: Mlp,
+    opt: Adam,
+}
+
+/// One importance-weighted squared-error step of a value network `value`
+/// toward `targets` on prepared observations `x`, then the Polyak move of
+/// its `target` by `tau`; returns the weighted loss.
+#[allow(clippy::too_many_arguments)]
+fn td_step(
+    value: &mut Mlp,
+    target: &mut Mlp,
+    opt: &mut Adam,
+    x: ArrayView2<'_, f32>,
+    targets: &[f64],
+    weights: &[f64],
+    max_grad_norm: f32,
+    tau: f32,
+) -> Result<f64> {
+    let n = targets.len();
+    let mut tape = Tape::new();
+    let v = value.forward_tape(x, &mut tape).to_owned();
+    let mut g = Array2::<f32>::zeros((n, 1));
+    let mut loss = 0.0;
+    for i in 0..n {
+        let d = v[[i, 0]] as f64 - targets[i];
+        loss += weights[i] * d * d / n as f64;
+        g[[i, 0]] = (2.0 * weights[i] * d / n as f64) as f32;
+    }
+    let mut grads = value.zero_grads();
+    value.backward_params(&tape, g.view(), &mut grads);
+    clip_grad_norm(&mut grads, max_grad_norm);
+    opt.step(value, &grads)?;
+    target.polyak_toward(value, tau)?;
+    Ok(loss)
+}
+
+/// The row-wise smaller of two `(n, 1)` value predictions.
+fn min_values(a: Array2<f32>, b: &Array2<f32>) -> Array2<f32> {
+    let mut a = a;
+    a.zip_mut_with(b, |x, &y| *x = x.min(y));
+    a
 }
 
 /// Pairs of the self-imitation term: states, actions and a 0/1 mask per
@@ -505,7 +569,24 @@ impl Svg1 {
         let value_opt = Adam::new(AdamConfig::with_lr(config.value_lr), &value)?;
         let avg_policy = (config.policy_avg_tau > 0.0 || config.policy_avg_uniform_from.is_some())
             .then(|| policy.clone());
+        let twin = if config.twin_value {
+            let value = Mlp::new(
+                &MlpConfig::new(o, &config.hidden, 1)
+                    .with_activation(Activation::Tanh)
+                    .with_init(Init::GlorotUniform),
+                rng,
+            )?;
+            let opt = Adam::new(AdamConfig::with_lr(config.value_lr), &value)?;
+            Some(TwinValue {
+                target: value.clone(),
+                value,
+                opt,
+            })
+        } else {
+            None
+        };
         Ok(Self {
+            twin,
             avg_count: 0,
             demos: None,
             sil: Vec::new(),
@@ -560,7 +641,7 @@ impl Svg1 {
             let input = Self::model_input(xn.view(), mu.view());
             xn = &xn + &self.model.predict(input.view());
         }
-        let v = self.value.predict(xn.view());
+        let v = self.value_estimate(xn.view());
         let discount = self.config.gamma.powi(horizon as i32);
         let r = match reward {
             Some(rw) => rw.reward_and_grad(states, actions)?.0.to_vec(),
@@ -598,7 +679,18 @@ impl Svg1 {
             avg_count: self.avg_count,
             demos: self.demos.clone(),
             sil: Vec::new(),
+            twin: self.twin.clone(),
         })
+    }
+
+    /// The learner's value of prepared observations `x`: the value
+    /// network's, or with `twin_value` the smaller of the two networks'.
+    fn value_estimate(&self, x: ArrayView2<'_, f32>) -> Array2<f32> {
+        let v = self.value.predict(x);
+        match &self.twin {
+            Some(t) => min_values(v, &t.value.predict(x)),
+            None => v,
+        }
     }
 
     /// The settings.
@@ -859,28 +951,44 @@ impl Svg1 {
     ) -> Result<f64> {
         let x = self.policy.prepare_obs(batch.states.view())?;
         let xn = self.policy.prepare_obs(boot_states.view())?;
-        let vn = self.value_target.predict(xn.view());
-        let n = batch.rewards.len();
-        let mut tape = Tape::new();
-        let v = self.value.forward_tape(x.view(), &mut tape).to_owned();
-        let mut g = Array2::<f32>::zeros((n, 1));
-        let mut loss = 0.0;
-        for i in 0..n {
-            let boot = if discount[i] == 0.0 {
-                0.0
-            } else {
-                discount[i] * vn[[i, 0]] as f64
-            };
-            let d = v[[i, 0]] as f64 - (batch.rewards[i] + later[i] + boot);
-            loss += weights[i] * d * d / n as f64;
-            g[[i, 0]] = (2.0 * weights[i] * d / n as f64) as f32;
+        let mut vn = self.value_target.predict(xn.view());
+        if let Some(t) = &self.twin {
+            vn = min_values(vn, &t.target.predict(xn.view()));
         }
-        let mut grads = self.value.zero_grads();
-        self.value.backward_params(&tape, g.view(), &mut grads);
-        clip_grad_norm(&mut grads, self.config.max_grad_norm);
-        self.value_opt.step(&mut self.value, &grads)?;
-        self.value_target
-            .polyak_toward(&self.value, self.config.target_tau as f32)?;
+        let n = batch.rewards.len();
+        let targets: Vec<f64> = (0..n)
+            .map(|i| {
+                let boot = if discount[i] == 0.0 {
+                    0.0
+                } else {
+                    discount[i] * vn[[i, 0]] as f64
+                };
+                batch.rewards[i] + later[i] + boot
+            })
+            .collect();
+        let (max_norm, tau) = (self.config.max_grad_norm, self.config.target_tau as f32);
+        let loss = td_step(
+            &mut self.value,
+            &mut self.value_target,
+            &mut self.value_opt,
+            x.view(),
+            &targets,
+            weights,
+            max_norm,
+            tau,
+        )?;
+        if let Some(t) = &mut self.twin {
+            td_step(
+                &mut t.value,
+                &mut t.target,
+                &mut t.opt,
+                x.view(),
+                &targets,
+                weights,
+                max_norm,
+                tau,
+            )?;
+        }
         Ok(loss)
     }
 
@@ -938,17 +1046,39 @@ impl Svg1 {
         let xn = &x + &pred + &inputs.xi.mapv(|v| v as f32);
         let mut vtape = Tape::new();
         let v = self.value.forward_tape(xn.view(), &mut vtape).to_owned();
+        // With `twin_value`, each row reads (and differentiates) the
+        // smaller of the two values.
+        let mut ttape = Tape::new();
+        let v2 = self
+            .twin
+            .as_ref()
+            .map(|t| t.value.forward_tape(xn.view(), &mut ttape).to_owned());
         let mut objective = 0.0;
         let mut gv = Array2::<f32>::zeros((n, 1));
+        let mut gv2 = Array2::<f32>::zeros((n, 1));
         for i in 0..n {
             let cont = if batch.terminated[i] { 0.0 } else { 1.0 };
             let w = inputs.weights[i] / n as f64;
-            objective += w * (r[i] + self.config.gamma * cont * v[[i, 0]] as f64);
-            gv[[i, 0]] = (w * self.config.gamma * cont) as f32;
+            let g = (w * self.config.gamma * cont) as f32;
+            let vi = match &v2 {
+                Some(v2) if v2[[i, 0]] < v[[i, 0]] => {
+                    gv2[[i, 0]] = g;
+                    v2[[i, 0]]
+                }
+                _ => {
+                    gv[[i, 0]] = g;
+                    v[[i, 0]]
+                }
+            };
+            objective += w * (r[i] + self.config.gamma * cont * vi as f64);
         }
         // dJ/dx' -> dJ/d(model output) is the same (x' = x + f + xi).
         let mut scratch = self.value.zero_grads();
-        let d_xn = self.value.backward(&vtape, gv.view(), &mut scratch);
+        let mut d_xn = self.value.backward(&vtape, gv.view(), &mut scratch);
+        if let Some(t) = &self.twin {
+            let mut scratch = t.value.zero_grads();
+            d_xn += &t.value.backward(&ttape, gv2.view(), &mut scratch);
+        }
         let mut scratch_m = self.model.zero_grads();
         let d_in = self.model.backward(&mtape, d_xn.view(), &mut scratch_m);
         let mut d_a = d_in.slice(s![.., o..]).mapv(|v| v as f64);
@@ -1242,7 +1372,7 @@ impl Svg1 {
             }
         }
         let x = self.policy.prepare_obs(states.view())?;
-        let v = self.value.predict(x.view());
+        let v = self.value_estimate(x.view());
         let mask = returns
             .iter()
             .zip(v.column(0))

@@ -1088,3 +1088,115 @@ fn the_spatial_smoothness_term_flattens_the_policy_around_its_states() {
         assert!(e.contains(field), "{e}");
     }
 }
+
+/// `twin_value`: a second value network whose smaller reading is used.
+/// The policy step's gradient (through whichever network is smaller,
+/// row by row) matches finite differences, the lookahead reads the same
+/// smaller value as the policy step, the learner still learns to reach,
+/// a saved learner continues identically, and the setting and the second
+/// network are written only when on.
+#[test]
+fn twin_value_reads_the_smaller_value_and_learns() {
+    let off = SvgConfig {
+        hidden: vec![8],
+        gamma: 0.9,
+        learning_starts: 0,
+        ..SvgConfig::default()
+    };
+    let on = SvgConfig {
+        twin_value: true,
+        ..off.clone()
+    };
+    let (mut svg, mut rng) = fresh(3, &on);
+    train_plain(&mut svg, 60, &mut rng);
+    let mut batch = svg.sample(16, &mut rng).unwrap();
+    batch.terminated = vec![false; 16];
+    // The step's objective at zero noise is the lookahead at horizon 1,
+    // which reads the smaller value; it is below the first network's.
+    let policy = svg.policy().clone();
+    let mu = Array2::from_shape_fn((16, 2), |(i, j)| {
+        policy
+            .act_deterministic(&batch.states.row(i).to_vec())
+            .unwrap()[j]
+    });
+    let zero = red_rl::svg::PolicyInputs {
+        eta: Array2::zeros((16, 2)),
+        xi: Array2::zeros((16, 2)),
+        weights: vec![1.0; 16],
+    };
+    let (obj, _) = svg.policy_objective(&batch, &zero, &ReachReward).unwrap();
+    let scores = svg
+        .lookahead_scores(&policy, batch.states.view(), mu.view(), None, 1)
+        .unwrap();
+    let rewards: Vec<f64> = (0..16)
+        .map(|i| reach_reward(&batch.states.row(i).to_vec(), &mu.row(i).to_vec()))
+        .collect();
+    let mean = scores.iter().zip(&rewards).map(|(v, r)| v + r).sum::<f64>() / 16.0;
+    assert!((mean - obj).abs() < 1e-5, "{mean} against {obj}");
+    // The same learner without its second network reads a larger value
+    // on some rows and never a smaller one.
+    let json = serde_json::to_value(&svg).unwrap();
+    assert_eq!(json["config"]["twin_value"], serde_json::json!(true));
+    let mut single = json.clone();
+    single.as_object_mut().unwrap().remove("twin");
+    single["config"]
+        .as_object_mut()
+        .unwrap()
+        .remove("twin_value");
+    let single: Svg1 = serde_json::from_value(single).unwrap();
+    let first = single
+        .lookahead_scores(&policy, batch.states.view(), mu.view(), None, 1)
+        .unwrap();
+    assert!(first.iter().zip(&scores).all(|(a, b)| a >= b));
+    assert!(first.iter().zip(&scores).any(|(a, b)| a > b));
+    // The gradient against finite differences, at the replayed noise.
+    let inputs = svg.policy_inputs(&batch).unwrap();
+    let (_, grads) = svg.policy_objective(&batch, &inputs, &ReachReward).unwrap();
+    let g = grads.flat();
+    let dir: Vec<f32> = (0..g.len())
+        .map(|_| rng.random_range(-1.0f32..1.0))
+        .collect();
+    let analytic: f64 = g.iter().zip(&dir).map(|(a, b)| *a as f64 * *b as f64).sum();
+    let p0 = svg.policy().net().params_flat();
+    let h = 1e-2f32;
+    let at = |sign: f32| {
+        let mut learner = svg.clone();
+        let p: Vec<f32> = p0.iter().zip(&dir).map(|(p, d)| p + sign * h * d).collect();
+        learner_set(&mut learner, &p);
+        learner
+            .policy_objective(&batch, &inputs, &ReachReward)
+            .unwrap()
+            .0
+    };
+    let numeric = (at(1.0) - at(-1.0)) / (2.0 * h as f64);
+    assert!(
+        (numeric - analytic).abs() <= 0.02 * analytic.abs().max(1e-3) + 1e-5,
+        "analytic {analytic}, numeric {numeric}"
+    );
+    assert!(analytic.abs() > 1e-4, "analytic {analytic}");
+    // Off: neither the setting nor a second network is written.
+    let (plain, _) = fresh(3, &off);
+    let json = serde_json::to_string(&plain).unwrap();
+    assert!(!json.contains("twin"), "{}", &json[..200]);
+    // It learns to reach, and a saved learner goes on identically.
+    let reach = SvgConfig {
+        twin_value: true,
+        ..reach_config()
+    };
+    let (learned, _) = run_with(&reach, 5, 8_000);
+    let after = eval_distance(learned.policy(), 10);
+    assert!(after < 0.2, "final distance {after}");
+    let (mut a, mut rng_a) = fresh(
+        2,
+        &SvgConfig {
+            twin_value: true,
+            ..small_config()
+        },
+    );
+    train_plain(&mut a, 200, &mut rng_a);
+    let saved = serde_json::to_string(&(&a, &rng_a)).unwrap();
+    let (mut b, mut rng_b): (Svg1, ChaCha8Rng) = serde_json::from_str(&saved).unwrap();
+    train_plain(&mut a, 200, &mut rng_a);
+    train_plain(&mut b, 200, &mut rng_b);
+    assert_eq!(a.policy(), b.policy());
+}
