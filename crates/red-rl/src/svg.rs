@@ -509,6 +509,17 @@ fn td_step(
     Ok(loss)
 }
 
+/// A fresh value network on `o` prepared inputs (`config.hidden`, tanh,
+/// Glorot-uniform).
+fn value_net<R: Rng + ?Sized>(o: usize, config: &SvgConfig, rng: &mut R) -> Result<Mlp> {
+    Ok(Mlp::new(
+        &MlpConfig::new(o, &config.hidden, 1)
+            .with_activation(Activation::Tanh)
+            .with_init(Init::GlorotUniform),
+        rng,
+    )?)
+}
+
 /// The row-wise smaller of two `(n, 1)` value predictions.
 fn min_values(a: Array2<f32>, b: &Array2<f32>) -> Array2<f32> {
     let mut a = a;
@@ -558,24 +569,14 @@ impl Svg1 {
                 .with_init(Init::GlorotUniform),
             rng,
         )?;
-        let value = Mlp::new(
-            &MlpConfig::new(o, &config.hidden, 1)
-                .with_activation(Activation::Tanh)
-                .with_init(Init::GlorotUniform),
-            rng,
-        )?;
+        let value = value_net(o, config, rng)?;
         let policy_opt = Adam::new(AdamConfig::with_lr(config.policy_lr), policy.net())?;
         let model_opt = Adam::new(AdamConfig::with_lr(config.model_lr), &model)?;
         let value_opt = Adam::new(AdamConfig::with_lr(config.value_lr), &value)?;
         let avg_policy = (config.policy_avg_tau > 0.0 || config.policy_avg_uniform_from.is_some())
             .then(|| policy.clone());
         let twin = if config.twin_value {
-            let value = Mlp::new(
-                &MlpConfig::new(o, &config.hidden, 1)
-                    .with_activation(Activation::Tanh)
-                    .with_init(Init::GlorotUniform),
-                rng,
-            )?;
+            let value = value_net(o, config, rng)?;
             let opt = Adam::new(AdamConfig::with_lr(config.value_lr), &value)?;
             Some(TwinValue {
                 target: value.clone(),

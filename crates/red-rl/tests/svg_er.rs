@@ -169,10 +169,30 @@ fn policy_gradient_matches_finite_differences() {
     let batch = svg.sample(16, &mut rng).unwrap();
     let inputs = svg.policy_inputs(&batch).unwrap();
     // At the current parameters the inferred noise reproduces the actions.
-    let (obj, grads) = svg.policy_objective(&batch, &inputs, &ReachReward).unwrap();
+    let (obj, _) = svg.policy_objective(&batch, &inputs, &ReachReward).unwrap();
     assert!(obj.is_finite());
-    let g = grads.flat();
     // A random direction; compare the directional derivative.
+    let analytic = check_policy_gradient(&svg, &batch, &inputs, &mut rng);
+    // And the gradient is not trivially zero.
+    assert!(analytic.abs() > 1e-4, "analytic {analytic}");
+    svg.update_policy(&batch, &inputs, &ReachReward).unwrap();
+}
+
+fn learner_set(svg: &mut Svg1, params: &[f32]) {
+    svg.policy_mut().net_mut().set_params_flat(params).unwrap();
+}
+
+/// The policy step's gradient along a random direction against central
+/// finite differences of the objective (step 1e-2, 2% tolerance); returns
+/// the analytic directional derivative.
+fn check_policy_gradient(
+    svg: &Svg1,
+    batch: &red_rl::svg::SvgBatch,
+    inputs: &red_rl::svg::PolicyInputs,
+    rng: &mut ChaCha8Rng,
+) -> f64 {
+    let (_, grads) = svg.policy_objective(batch, inputs, &ReachReward).unwrap();
+    let g = grads.flat();
     let dir: Vec<f32> = (0..g.len())
         .map(|_| rng.random_range(-1.0f32..1.0))
         .collect();
@@ -184,23 +204,16 @@ fn policy_gradient_matches_finite_differences() {
         let p: Vec<f32> = p0.iter().zip(&dir).map(|(p, d)| p + sign * h * d).collect();
         learner_set(&mut learner, &p);
         learner
-            .policy_objective(&batch, &inputs, &ReachReward)
+            .policy_objective(batch, inputs, &ReachReward)
             .unwrap()
             .0
     };
     let numeric = (at(1.0) - at(-1.0)) / (2.0 * h as f64);
-    let err = (numeric - analytic).abs();
     assert!(
-        err <= 0.02 * analytic.abs().max(1e-3) + 1e-5,
+        (numeric - analytic).abs() <= 0.02 * analytic.abs().max(1e-3) + 1e-5,
         "analytic {analytic}, numeric {numeric}"
     );
-    // And the gradient is not trivially zero.
-    assert!(analytic.abs() > 1e-4, "analytic {analytic}");
-    svg.update_policy(&batch, &inputs, &ReachReward).unwrap();
-}
-
-fn learner_set(svg: &mut Svg1, params: &[f32]) {
-    svg.policy_mut().net_mut().set_params_flat(params).unwrap();
+    analytic
 }
 
 /// The settings of the reaching tests.
@@ -588,28 +601,7 @@ fn fixed_std_sets_exploration_and_keeps_the_gradient_exact() {
     train_plain(&mut svg, 60, &mut rng);
     let batch = svg.sample(16, &mut rng).unwrap();
     let inputs = svg.policy_inputs(&batch).unwrap();
-    let (_, grads) = svg.policy_objective(&batch, &inputs, &ReachReward).unwrap();
-    let g = grads.flat();
-    let dir: Vec<f32> = (0..g.len())
-        .map(|_| rng.random_range(-1.0f32..1.0))
-        .collect();
-    let analytic: f64 = g.iter().zip(&dir).map(|(a, b)| *a as f64 * *b as f64).sum();
-    let p0 = svg.policy().net().params_flat();
-    let h = 1e-2f32;
-    let at = |sign: f32| {
-        let mut learner = svg.clone();
-        let p: Vec<f32> = p0.iter().zip(&dir).map(|(p, d)| p + sign * h * d).collect();
-        learner_set(&mut learner, &p);
-        learner
-            .policy_objective(&batch, &inputs, &ReachReward)
-            .unwrap()
-            .0
-    };
-    let numeric = (at(1.0) - at(-1.0)) / (2.0 * h as f64);
-    assert!(
-        (numeric - analytic).abs() <= 0.02 * analytic.abs().max(1e-3) + 1e-5,
-        "analytic {analytic}, numeric {numeric}"
-    );
+    check_policy_gradient(&svg, &batch, &inputs, &mut rng);
 }
 
 #[test]
@@ -839,17 +831,20 @@ fn n_step_value_targets_learn_and_one_step_is_td0() {
     );
 }
 
-#[test]
-fn lookahead_scores_are_the_policy_objective_at_zero_noise() {
-    let config = SvgConfig {
-        hidden: vec![8],
-        gamma: 0.9,
-        learning_starts: 0,
-        ..SvgConfig::default()
-    };
-    let (mut svg, mut rng) = fresh(5, &config);
-    train_plain(&mut svg, 60, &mut rng);
-    let mut batch = svg.sample(16, &mut rng).unwrap();
+/// After 60 training steps: 16 replayed non-terminal rows, the policy,
+/// its mean actions on them, and policy-step inputs of zero noise and unit
+/// weights.
+fn at_the_mean(
+    svg: &mut Svg1,
+    rng: &mut ChaCha8Rng,
+) -> (
+    red_rl::svg::SvgBatch,
+    GaussianPolicy,
+    Array2<f64>,
+    red_rl::svg::PolicyInputs,
+) {
+    train_plain(svg, 60, rng);
+    let mut batch = svg.sample(16, rng).unwrap();
     batch.terminated = vec![false; 16];
     let policy = svg.policy().clone();
     let mu = Array2::from_shape_fn((16, 2), |(i, j)| {
@@ -862,6 +857,19 @@ fn lookahead_scores_are_the_policy_objective_at_zero_noise() {
         xi: Array2::zeros((16, 2)),
         weights: vec![1.0; 16],
     };
+    (batch, policy, mu, inputs)
+}
+
+#[test]
+fn lookahead_scores_are_the_policy_objective_at_zero_noise() {
+    let config = SvgConfig {
+        hidden: vec![8],
+        gamma: 0.9,
+        learning_starts: 0,
+        ..SvgConfig::default()
+    };
+    let (mut svg, mut rng) = fresh(5, &config);
+    let (batch, policy, mu, inputs) = at_the_mean(&mut svg, &mut rng);
     let (obj, _) = svg.policy_objective(&batch, &inputs, &ReachReward).unwrap();
     let with_r = svg
         .lookahead_scores(
@@ -1108,22 +1116,9 @@ fn twin_value_reads_the_smaller_value_and_learns() {
         ..off.clone()
     };
     let (mut svg, mut rng) = fresh(3, &on);
-    train_plain(&mut svg, 60, &mut rng);
-    let mut batch = svg.sample(16, &mut rng).unwrap();
-    batch.terminated = vec![false; 16];
     // The step's objective at zero noise is the lookahead at horizon 1,
     // which reads the smaller value; it is below the first network's.
-    let policy = svg.policy().clone();
-    let mu = Array2::from_shape_fn((16, 2), |(i, j)| {
-        policy
-            .act_deterministic(&batch.states.row(i).to_vec())
-            .unwrap()[j]
-    });
-    let zero = red_rl::svg::PolicyInputs {
-        eta: Array2::zeros((16, 2)),
-        xi: Array2::zeros((16, 2)),
-        weights: vec![1.0; 16],
-    };
+    let (batch, policy, mu, zero) = at_the_mean(&mut svg, &mut rng);
     let (obj, _) = svg.policy_objective(&batch, &zero, &ReachReward).unwrap();
     let scores = svg
         .lookahead_scores(&policy, batch.states.view(), mu.view(), None, 1)
@@ -1151,28 +1146,7 @@ fn twin_value_reads_the_smaller_value_and_learns() {
     assert!(first.iter().zip(&scores).any(|(a, b)| a > b));
     // The gradient against finite differences, at the replayed noise.
     let inputs = svg.policy_inputs(&batch).unwrap();
-    let (_, grads) = svg.policy_objective(&batch, &inputs, &ReachReward).unwrap();
-    let g = grads.flat();
-    let dir: Vec<f32> = (0..g.len())
-        .map(|_| rng.random_range(-1.0f32..1.0))
-        .collect();
-    let analytic: f64 = g.iter().zip(&dir).map(|(a, b)| *a as f64 * *b as f64).sum();
-    let p0 = svg.policy().net().params_flat();
-    let h = 1e-2f32;
-    let at = |sign: f32| {
-        let mut learner = svg.clone();
-        let p: Vec<f32> = p0.iter().zip(&dir).map(|(p, d)| p + sign * h * d).collect();
-        learner_set(&mut learner, &p);
-        learner
-            .policy_objective(&batch, &inputs, &ReachReward)
-            .unwrap()
-            .0
-    };
-    let numeric = (at(1.0) - at(-1.0)) / (2.0 * h as f64);
-    assert!(
-        (numeric - analytic).abs() <= 0.02 * analytic.abs().max(1e-3) + 1e-5,
-        "analytic {analytic}, numeric {numeric}"
-    );
+    let analytic = check_policy_gradient(&svg, &batch, &inputs, &mut rng);
     assert!(analytic.abs() > 1e-4, "analytic {analytic}");
     // Off: neither the setting nor a second network is written.
     let (plain, _) = fresh(3, &off);
